@@ -1,0 +1,132 @@
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from hwlib import CartPoleLinearPolicy, play_episode, random_policy_rewards, run_episodes, run_policy
+from hwlib.cartpole import (
+    ALWAYS_LEFT_PARAMS,
+    ALWAYS_RIGHT_PARAMS,
+    BALANCING_PARAMS,
+    episode_seeds,
+    linear_policy_actions,
+    sample_random_params,
+    start_states,
+)
+
+
+def test_policy_follows_equation_one():
+    policy = CartPoleLinearPolicy([1.0, 0.0, -2.0, 0.0])
+    assert policy(np.array([0.0, 0.0, 0.1, 0.0])) == 1  # score -0.2 < 0
+    assert policy(np.array([0.0, 0.0, -0.1, 0.0])) == 0  # score 0.2
+    assert policy(np.array([0.2, 0.0, 0.1, 0.0])) == 0  # score exactly 0 is not < 0
+
+
+def test_policy_returns_python_int_actions_the_env_accepts():
+    action = CartPoleLinearPolicy(BALANCING_PARAMS)(np.zeros(4, dtype=np.float32))
+    assert type(action) is int
+    assert gym.make("CartPole-v1").action_space.contains(action)
+
+
+def test_batched_actions_pair_each_row_of_params_with_its_observation():
+    params = np.array([[1.0, 0, 0, 0], [-1.0, 0, 0, 0]])
+    observations = np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])
+    np.testing.assert_array_equal(linear_policy_actions(params, observations), [0, 1])
+
+
+@pytest.mark.parametrize("params", [[1.0, 2.0, 3.0], np.zeros((2, 4)), [1.0, 2.0, 3.0, np.nan], [0, 0, np.inf, 0]])
+def test_policy_rejects_bad_params(params):
+    with pytest.raises(ValueError, match="params must"):
+        CartPoleLinearPolicy(params)
+
+
+def test_policy_rejects_non_numeric_params():
+    with pytest.raises(TypeError, match="params must be an array of numbers"):
+        CartPoleLinearPolicy(["a", "b", "c", "d"])
+
+
+def test_policy_rejects_bad_observation():
+    with pytest.raises(ValueError, match=r"obs must have shape \(4,\)"):
+        CartPoleLinearPolicy(BALANCING_PARAMS)(np.zeros(3))
+
+
+def test_run_policy_is_deterministic_for_a_seed():
+    policy = CartPoleLinearPolicy([0.3, -0.2, -0.9, -0.1])
+    assert run_policy(policy, seed=5) == run_policy(policy, seed=5)
+
+
+def test_presets_behave_as_named():
+    left = play_episode(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=0)
+    right = play_episode(CartPoleLinearPolicy(ALWAYS_RIGHT_PARAMS), seed=0)
+    assert set(left.actions.tolist()) == {0}
+    assert set(right.actions.tolist()) == {1}
+    rewards = [run_policy(CartPoleLinearPolicy(BALANCING_PARAMS), seed=seed) for seed in range(20)]
+    assert rewards == [500.0] * 20
+
+
+def test_episode_records_every_state_and_ends_at_a_threshold_or_the_horizon():
+    episode = play_episode(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=1)
+    assert episode.states.shape == (episode.num_steps + 1, 4)
+    assert episode.total_reward == episode.num_steps < 500
+    final_x, _, final_angle, _ = episode.states[-1]
+    assert abs(final_x) > 2.4 or abs(final_angle) > 12 * 2 * np.pi / 360
+
+
+def test_run_policy_rejects_bad_arguments():
+    with pytest.raises(TypeError, match="policy must be callable"):
+        run_policy([0, 0, 0, 0])
+    with pytest.raises(ValueError, match="seed must be a non-negative integer"):
+        run_policy(CartPoleLinearPolicy(BALANCING_PARAMS), seed=-1)
+    with pytest.raises(ValueError, match="seed must be a non-negative integer"):
+        run_policy(CartPoleLinearPolicy(BALANCING_PARAMS), seed=1.5)
+
+
+def test_start_states_are_those_reset_gives():
+    env = gym.make("CartPole-v1")
+    for seed, state in zip([0, 7, 123], start_states([0, 7, 123])):
+        obs, _ = env.reset(seed=seed)
+        np.testing.assert_array_equal(state.astype(np.float32), obs)
+
+
+def test_batched_episodes_equal_the_one_by_one_loop():
+    params = sample_random_params(60, seed=4)
+    seeds = episode_seeds(60, seed=9)
+    batched = run_episodes(params, seeds)
+    looped = [run_policy(CartPoleLinearPolicy(p), seed=int(s)) for p, s in zip(params, seeds)]
+    np.testing.assert_array_equal(batched, looped)
+    assert len(set(batched.tolist())) > 5  # a real mix of rewards, not one value
+
+
+def test_batched_episodes_stop_counting_after_an_episode_ends():
+    # Short episodes (always left, ~10 steps) next to full ones (500 steps): under NEXT_STEP
+    # autoreset the short ones would keep collecting reward if they were not masked.
+    params = np.array([ALWAYS_LEFT_PARAMS, BALANCING_PARAMS, ALWAYS_LEFT_PARAMS])
+    rewards = run_episodes(params, [3, 3, 4])
+    assert rewards[1] == 500
+    assert rewards[0] == run_policy(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=3) < 20
+    assert rewards[2] == run_policy(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=4) < 20
+
+
+def test_run_episodes_rejects_bad_arguments():
+    with pytest.raises(ValueError, match=r"params must have shape \(K, 4\)"):
+        run_episodes(np.zeros(4), [0])
+    with pytest.raises(ValueError, match="one seed per row of params"):
+        run_episodes(np.zeros((2, 4)), [0])
+    with pytest.raises(ValueError, match="seeds must be a non-empty 1-d sequence of non-negative integers"):
+        run_episodes(np.zeros((1, 4)), [0.5])
+    with pytest.raises(ValueError, match="params must hold only finite numbers"):
+        run_episodes(np.full((1, 4), np.nan), [0])
+
+
+def test_random_policies_are_seeded_and_batched_equals_loop():
+    params, rewards = random_policy_rewards(40, seed=2)
+    params_again, rewards_again = random_policy_rewards(40, seed=2)
+    _, looped = random_policy_rewards(40, seed=2, batched=False)
+    np.testing.assert_array_equal(params, params_again)
+    np.testing.assert_array_equal(rewards, rewards_again)
+    np.testing.assert_array_equal(rewards, looped)
+    assert params.shape == (40, 4) and np.all(np.abs(params) <= 1)
+
+
+def test_random_policy_count_is_validated():
+    with pytest.raises(ValueError, match="num_policies must be a positive integer"):
+        random_policy_rewards(0, seed=0)
