@@ -133,19 +133,22 @@ def start_states(seeds):
     return states
 
 
-def run_episodes(params, seeds):
-    """Total reward of one episode per row of ``params``, all played at once.
+def run_episodes(params, seeds, batched=True):
+    """Total reward of one episode per row of ``params``.
 
-    Row k of ``params`` (shape (K, 4)) plays from the start state of ``reset(seed=seeds[k])``;
-    the result equals ``[run_policy(CartPoleLinearPolicy(p), seed=s) for p, s in zip(params,
-    seeds)]``, only faster. The episodes run in gymnasium's vectorised CartPole. Its start
-    states are set once after ``reset``; from then on rewards come only from ``step``.
+    Row k of ``params`` (shape (K, 4)) plays from the start state of ``reset(seed=seeds[k])``.
+    With ``batched=False`` the episodes are played one by one with ``run_policy``; by default
+    they all run at once in gymnasium's vectorised CartPole, whose start states are set once
+    after ``reset`` (from then on rewards come only from ``step``). Both give the same rewards.
     Returns a float64 array of K rewards.
     """
     params = check_params_batch(params, "params")
     seeds = check_seeds(seeds, "seeds")
     if len(seeds) != len(params):
         raise ValueError(f"seeds must hold one seed per row of params ({len(params)}), got {len(seeds)}")
+    if not batched:
+        env = make_env()
+        return np.array([run_policy(CartPoleLinearPolicy(p), seed=int(s), env=env) for p, s in zip(params, seeds)])
     num_episodes = len(params)
     env = gym.make_vec(ENV_ID, num_envs=num_episodes, vectorization_mode="vector_entry_point")
     env.reset(seed=int(seeds[0]))
@@ -191,9 +194,4 @@ def random_policy_rewards(num_policies=1000, seed=0, batched=True):
     Returns ``(params, rewards)`` with shapes (num_policies, 4) and (num_policies,).
     """
     params = sample_random_params(num_policies, seed)
-    seeds = episode_seeds(num_policies, seed + 1)
-    if batched:
-        return params, run_episodes(params, seeds)
-    env = make_env()
-    rewards = [run_policy(CartPoleLinearPolicy(p), seed=int(s), env=env) for p, s in zip(params, seeds)]
-    return params, np.array(rewards)
+    return params, run_episodes(params, episode_seeds(num_policies, seed + 1), batched=batched)

@@ -144,11 +144,15 @@ def plot_training_curve(rewards, learning_rate=None):
     return figure
 
 
-def plot_learning_rate_sweep(sweep):
-    """Fraction of seeds converging within the deadline, per learning rate (an ``hwlib.policy_search.SweepResult``)."""
+def plot_learning_rate_sweep(sweep, chosen_learning_rate=None):
+    """Fraction of seeds converging within the deadline, per learning rate (an ``hwlib.policy_search.SweepResult``),
+    with ``chosen_learning_rate`` marked if given."""
     figure = new_figure()
     ax = figure.add_subplot()
     ax.semilogx(sweep.learning_rates, sweep.converged_fraction, marker="o")
+    if chosen_learning_rate is not None:
+        ax.axvline(chosen_learning_rate, color="tab:green", ls="--", label=f"chosen: {chosen_learning_rate:g}")
+        ax.legend(loc="lower left")
     ax.set_ylim(-0.03, 1.03)
     ax.set_xlabel("learning rate")
     ax.set_ylabel(f"fraction of seeds converged by iteration {sweep.deadline}")
