@@ -32,6 +32,7 @@ from hwlib._checks import check_count, check_params, check_params_batch, check_s
 ENV_ID = "CartPole-v1"
 NUM_OBSERVATIONS = 4
 MAX_EPISODE_REWARD = 500
+SEED_BOUND = 2**31 - 1  # episode seeds are drawn from [0, SEED_BOUND)
 OBSERVATION_NAMES = ("cart position", "cart velocity", "pole angle", "pole angular velocity")
 X_THRESHOLD = 2.4
 THETA_THRESHOLD_RADIANS = 12 * 2 * np.pi / 360
@@ -180,10 +181,10 @@ def sample_random_params(num_policies, seed, low=-1.0, high=1.0):
 
 
 def episode_seeds(num_episodes, seed):
-    """``num_episodes`` distinct-stream episode seeds drawn from one master ``seed``."""
+    """``num_episodes`` episode seeds drawn from one master ``seed``."""
     num_episodes = check_count(num_episodes, "num_episodes")
     seed = check_seed(seed, "seed")
-    return np.random.default_rng(seed).integers(0, 2**31 - 1, size=num_episodes)
+    return np.random.default_rng(seed).integers(0, SEED_BOUND, size=num_episodes)
 
 
 def random_policy_rewards(num_policies=1000, seed=0, batched=True):

@@ -33,7 +33,14 @@ from hwlib._checks import (
     check_positive_number,
     check_seed,
 )
-from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, CartPoleLinearPolicy, episode_seeds, run_episodes
+from hwlib.cartpole import (
+    MAX_EPISODE_REWARD,
+    NUM_OBSERVATIONS,
+    SEED_BOUND,
+    CartPoleLinearPolicy,
+    episode_seeds,
+    run_episodes,
+)
 from hwlib.finite_diff import batched_finite_diff
 
 ### BEGIN SOLUTION 1.3.3
@@ -114,9 +121,9 @@ def train_cartpole_policies(
     fd_step = check_positive_number(fd_step, "fd_step")
 
     def draw_rollout_seeds():
-        return np.stack([rng.integers(0, 2**31 - 1, size=num_rollouts) for rng in run_rngs])
+        return np.stack([rng.integers(0, SEED_BOUND, size=num_rollouts) for rng in run_rngs])
 
-    def evaluate_neighbours(perturbed):  # perturbed: (M, 8, 4), scored on this iteration's seeds
+    def evaluate_neighbours(perturbed, rollout_seeds):  # perturbed: (M, 8, 4); run m's points share its seeds
         num_points = perturbed.shape[1]
         point_seeds = np.repeat(rollout_seeds, num_points, axis=0)
         flat_points = perturbed.reshape(-1, NUM_OBSERVATIONS)
@@ -127,7 +134,7 @@ def train_cartpole_policies(
     for iteration in range(num_training_iterations):
         rollout_seeds = draw_rollout_seeds()
         rewards[:, iteration] = eval_params_batch(params, rollout_seeds, batched)
-        gradients = batched_finite_diff(evaluate_neighbours, params, fd_step)
+        gradients = batched_finite_diff(lambda perturbed: evaluate_neighbours(perturbed, rollout_seeds), params, fd_step)
         params = params + learning_rates[:, None] * gradients
     rewards[:, -1] = eval_params_batch(params, draw_rollout_seeds(), batched)
     ### END SOLUTION 1.3.2
