@@ -10,3 +10,26 @@ from hwlib.policy_search import (
     train_cartpole_policies,
     train_cartpole_policy,
 )
+
+# Problem 2: food-cutting classification by one-vs-rest logistic regression.
+from hwlib.food_data import (
+    FOOD_NAMES,
+    FoodCuttingData,
+    find_audio_examples,
+    load_food_cutting,
+    make_synthetic_food_cutting,
+)
+from hwlib.logreg import (
+    MultiClassLogisticRegressionClassifier,
+    TwoClassLogisticRegressionClassifier,
+    accuracy,
+    add_bias_feature,
+    confusion_matrix,
+    first_iteration_above,
+    gradient_check,
+    log_likelihood,
+    log_likelihood_gradient,
+    per_class_accuracy,
+    sigmoid,
+    train_test_split,
+)
