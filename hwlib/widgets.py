@@ -84,7 +84,7 @@ class SliderPanel:
         ]
         self.seed_box = widgets.BoundedIntText(value=check_seed(seed, "seed"), min=0, max=2**31 - 1, description="seed")
         self.step_slider = widgets.IntSlider(value=0, min=0, max=0, description="step")
-        self.preset_buttons = [widgets.Button(description=name) for name in PRESETS]
+        self.preset_buttons = [widgets.Button(description=name, layout=widgets.Layout(width="auto")) for name in PRESETS]
         self.reward_label = widgets.HTML(layout=widgets.Layout(min_width="20em"))
         self.reward_label.add_class("hwlib-reward")
         self.image = widgets.Image(format="png")
