@@ -51,6 +51,7 @@ def linear_policy_actions(params, observations):
     of observations. Returns an int64 array (a 0-d array for a single observation).
     """
     ### BEGIN SOLUTION 1.1.1
+    ### HINT: return equation (1) as int64 actions: 1 where the sum of params * observations over the last axis is < 0, else 0
     scores = np.sum(np.asarray(params) * np.asarray(observations), axis=-1)
     return (scores < 0).astype(np.int64)
     ### END SOLUTION 1.1.1

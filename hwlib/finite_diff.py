@@ -33,6 +33,7 @@ def batched_finite_diff(f_batch, points, h):
     if not callable(f_batch):
         raise TypeError(f"f must be callable, got {type(f_batch).__name__}")
     ### BEGIN SOLUTION 1.2.1
+    ### HINT: stack the perturbed points (M, 2N, N): x + h_i e_i for each i, then x - h_i e_i; get their values with _check_values(f_batch(perturbed), (M, 2N)); return eq. (3), shape (M, N)
     offsets = np.diag(steps)  # row i is h_i e_i
     perturbed = points[:, None, :] + np.concatenate([offsets, -offsets])[None, :, :]
     values = _check_values(f_batch(perturbed), perturbed.shape[:2])

@@ -14,8 +14,8 @@ The model of the handout's equations (5)-(7), with the standard sign convention
 | accuracies        | (n_iters + 1,)                | ``accuracies[t]``: training accuracy after t updates |
 
 Training maximises equation (7) by gradient ascent, equation (8), with the *summed*
-(not averaged) gradient ``X_aug.T @ (y - sigma(X_aug @ weights))`` and starts from zero
-weights, as the course's skeleton does. One update of one model is ``_gradient_ascent_step``;
+(not averaged) gradient of equation (7) (``log_likelihood_gradient``, derived in 2.1.1) and
+starts from zero weights, as the course's skeleton does. One update of one model is ``_gradient_ascent_step``;
 the one-vs-rest classifier either calls it once per class (the handout's loop) or once with
 all C columns at a time (``vectorized=True``): the same code on a wider weight matrix.
 """
@@ -40,6 +40,7 @@ def sigmoid(z):
     """
     z = _as_finite_float_array(z, "z")
     ### BEGIN SOLUTION 2.2.1
+    ### HINT: 1 / (1 + exp(-z)) elementwise, without overflow or NaN for large |z| (e.g. z = -1000 or 1000)
     # exp(-|z|) lies in (0, 1], so it cannot overflow; for z < 0 the algebraically equal
     # form exp(z) / (1 + exp(z)) is used.
     with np.errstate(under="ignore"):
@@ -67,9 +68,12 @@ def log_likelihood(weights, features, labels):
 
 
 def log_likelihood_gradient(weights, features, labels):
-    """The analytic gradient of equation (7): ``X_aug.T @ (y - sigma(X_aug @ weights))``, shape (M + 1,)."""
+    """The analytic gradient of equation (7) with respect to ``weights`` (derived in 2.1.1), shape (M + 1,)."""
     features_aug, labels, weights = _check_two_class_problem(weights, features, labels)
+    ### BEGIN SOLUTION 2.1.1
+    ### HINT: return the gradient of equation (7) you derived, summed over the samples, shape (M + 1,); features_aug has the bias column
     return features_aug.T @ (labels - sigmoid(features_aug @ weights))
+    ### END SOLUTION 2.1.1
 
 
 def gradient_check(weights, features, labels, step=1e-5):
@@ -90,12 +94,13 @@ def gradient_check(weights, features, labels, step=1e-5):
 
 
 def _gradient_ascent_step(weights, features_aug, targets, learning_rate):
-    """One step of equation (8), in place: ``weights += learning_rate * X_aug.T @ (targets - p)``.
+    """One step of equation (8), in place: ``weights += learning_rate *`` the gradient of equation (7) for ``targets``.
 
     Either one model (weights (M + 1,), targets (N,)) or C models side by side
     (weights (M + 1, C), targets (N, C)); the same two lines serve both.
     """
     ### BEGIN SOLUTION 2.2.3
+    ### HINT: weights += learning_rate * the summed gradient you derived in 2.1.1, in place; with matrix products it serves targets (N,) and (N, C) alike
     residuals = targets - sigmoid(features_aug @ weights)
     weights += learning_rate * (features_aug.T @ residuals)
     ### END SOLUTION 2.2.3
@@ -124,8 +129,10 @@ class TwoClassLogisticRegressionClassifier:
 
     def predict_prob(self, X):
         """P(y = 1 | x) for each row of ``X`` (N, n_features), equation (5) with the standard sign."""
-        X_aug = _with_bias(check_features(X, "X", self.n_features))
+        X = check_features(X, "X", self.n_features)
         ### BEGIN SOLUTION 2.2.2
+        ### HINT: sigmoid of the logit for each row of X, shape (N,); append the constant 1 feature first (equation (6)), the bias is the last weight
+        X_aug = _with_bias(X)
         return sigmoid(X_aug @ self.weights)
         ### END SOLUTION 2.2.2
 
@@ -198,21 +205,25 @@ class MultiClassLogisticRegressionClassifier:
         n_iters = check_count(n_iters, "n_iters")
         if not isinstance(vectorized, bool):
             raise TypeError(f"vectorized must be True or False, got {vectorized!r}")
-        # Column c holds the 0/1 labels of class c; only the vectorized path needs them all at once.
-        all_targets = (labels[:, None] == np.arange(self.n_classes)).astype(np.float64) if vectorized else None
         accuracies = np.empty(n_iters + 1)
         for iteration in range(n_iters):
             accuracies[iteration] = self._accuracy(X_aug, labels)
-            if vectorized:
-                _gradient_ascent_step(self.weights, X_aug, all_targets, learning_rate)
-            else:
-                ### BEGIN SOLUTION 2.3.1
-                for class_index, classifier in enumerate(self.classifiers):
-                    class_targets = (labels == class_index).astype(np.float64)
-                    _gradient_ascent_step(classifier.weights, X_aug, class_targets, learning_rate)
-                ### END SOLUTION 2.3.1
+            self._one_vs_rest_step(X_aug, labels, learning_rate, vectorized)
         accuracies[-1] = self._accuracy(X_aug, labels)
         return accuracies
+
+    def _one_vs_rest_step(self, X_aug, labels, learning_rate, vectorized):
+        """One outer iteration: every class's model takes one gradient-ascent step on its own 0/1 labels."""
+        ### BEGIN SOLUTION 2.3.1
+        ### HINT: for each class c: its two-class labels (1 where the label is c, 0 elsewhere), then one _gradient_ascent_step on classifiers[c].weights (vectorized: all C columns of self.weights at once)
+        if vectorized:
+            all_targets = (labels[:, None] == np.arange(self.n_classes)).astype(np.float64)  # column c: class c
+            _gradient_ascent_step(self.weights, X_aug, all_targets, learning_rate)
+            return
+        for class_index, classifier in enumerate(self.classifiers):
+            class_targets = (labels == class_index).astype(np.float64)
+            _gradient_ascent_step(classifier.weights, X_aug, class_targets, learning_rate)
+        ### END SOLUTION 2.3.1
 
     def _accuracy(self, X_aug, labels):
         return np.mean(np.argmax(X_aug @ self.weights, axis=1) == labels)

@@ -14,6 +14,7 @@ from hwlib.cartpole import (
 )
 
 
+@pytest.mark.todo("1.1.1")
 def test_policy_follows_equation_one():
     policy = CartPoleLinearPolicy([1.0, 0.0, -2.0, 0.0])
     assert policy(np.array([0.0, 0.0, 0.1, 0.0])) == 1  # score -0.2 < 0
@@ -21,12 +22,14 @@ def test_policy_follows_equation_one():
     assert policy(np.array([0.2, 0.0, 0.1, 0.0])) == 0  # score exactly 0 is not < 0
 
 
+@pytest.mark.todo("1.1.1")
 def test_policy_returns_python_int_actions_the_env_accepts():
     action = CartPoleLinearPolicy(BALANCING_PARAMS)(np.zeros(4, dtype=np.float32))
     assert type(action) is int
     assert gym.make("CartPole-v1").action_space.contains(action)
 
 
+@pytest.mark.todo("1.1.1")
 def test_batched_actions_pair_each_row_of_params_with_its_observation():
     params = np.array([[1.0, 0, 0, 0], [-1.0, 0, 0, 0]])
     observations = np.array([[1.0, 0, 0, 0], [1.0, 0, 0, 0]])
@@ -49,11 +52,13 @@ def test_policy_rejects_bad_observation():
         CartPoleLinearPolicy(BALANCING_PARAMS)(np.zeros(3))
 
 
+@pytest.mark.todo("1.1.1")
 def test_run_policy_is_deterministic_for_a_seed():
     policy = CartPoleLinearPolicy([0.3, -0.2, -0.9, -0.1])
     assert run_policy(policy, seed=5) == run_policy(policy, seed=5)
 
 
+@pytest.mark.todo("1.1.1")
 def test_presets_behave_as_named():
     left = play_episode(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=0)
     right = play_episode(CartPoleLinearPolicy(ALWAYS_RIGHT_PARAMS), seed=0)
@@ -63,6 +68,7 @@ def test_presets_behave_as_named():
     assert rewards == [500.0] * 20
 
 
+@pytest.mark.todo("1.1.1")
 def test_episode_records_every_state_and_ends_at_a_threshold_or_the_horizon():
     episode = play_episode(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=1)
     assert episode.states.shape == (episode.num_steps + 1, 4)
@@ -87,6 +93,7 @@ def test_start_states_are_those_reset_gives():
         np.testing.assert_array_equal(state.astype(np.float32), obs)
 
 
+@pytest.mark.todo("1.1.1")
 def test_batched_episodes_equal_the_one_by_one_loop():
     params = sample_random_params(60, seed=4)
     seeds = episode_seeds(60, seed=9)
@@ -96,6 +103,7 @@ def test_batched_episodes_equal_the_one_by_one_loop():
     assert len(set(batched.tolist())) > 5  # a real mix of rewards, not one value
 
 
+@pytest.mark.todo("1.1.1")
 def test_batched_episodes_stop_counting_after_an_episode_ends():
     # Short episodes (always left, ~10 steps) next to full ones (500 steps): under NEXT_STEP
     # autoreset the short ones would keep collecting reward if they were not masked.
@@ -117,6 +125,7 @@ def test_run_episodes_rejects_bad_arguments():
         run_episodes(np.full((1, 4), np.nan), [0])
 
 
+@pytest.mark.todo("1.1.1")
 def test_random_policies_are_seeded_and_batched_equals_loop():
     params, rewards = random_policy_rewards(40, seed=2)
     params_again, rewards_again = random_policy_rewards(40, seed=2)

@@ -5,12 +5,14 @@ from hwlib import scalar_finite_diff
 from hwlib.finite_diff import batched_finite_diff
 
 
+@pytest.mark.todo("1.2.1")
 def test_linear_function_gradient_is_its_coefficients():
     coefficients = np.array([3.0, -2.0, 0.5, 7.0])
     gradient = scalar_finite_diff(lambda x: coefficients @ x + 4.0, np.array([1.0, 2.0, -3.0, 0.1]), np.full(4, 1e-3))
     np.testing.assert_allclose(gradient, coefficients, rtol=1e-9)
 
 
+@pytest.mark.todo("1.2.1")
 def test_trigonometric_gradient():
     x = np.array([0.0, 0.7, 2.0])
     gradient = scalar_finite_diff(lambda v: np.sin(v[0]) + np.cos(v[1]) * v[2], x, np.full(3, 1e-5))
@@ -18,6 +20,7 @@ def test_trigonometric_gradient():
     np.testing.assert_allclose(gradient, expected, atol=1e-8)
 
 
+@pytest.mark.todo("1.2.1")
 def test_quadratic_form_gradient_is_exact_for_central_differences():
     rng = np.random.default_rng(3)
     matrix = rng.normal(size=(5, 5))
@@ -26,6 +29,7 @@ def test_quadratic_form_gradient_is_exact_for_central_differences():
     np.testing.assert_allclose(gradient, (matrix + matrix.T) @ x, rtol=1e-9)
 
 
+@pytest.mark.todo("1.2.1")
 def test_non_uniform_steps_use_each_coordinates_own_step():
     # For a cubic, the central difference has error h_i^2 * f'''/6 in coordinate i, so each
     # coordinate's result reveals the step it used.
@@ -34,16 +38,19 @@ def test_non_uniform_steps_use_each_coordinates_own_step():
     np.testing.assert_allclose(gradient, steps**2, rtol=1e-9)
 
 
+@pytest.mark.todo("1.2.1")
 def test_uses_central_not_forward_differences():
     # A forward difference of x^2 at 0 with step 1 gives 1; the central one gives the exact 0.
     assert scalar_finite_diff(lambda v: float(v[0] ** 2), np.array([0.0]), np.array([1.0]))[0] == pytest.approx(0.0)
 
 
+@pytest.mark.todo("1.2.1")
 def test_scalar_step_is_broadcast_and_scalar_x_accepted():
     np.testing.assert_allclose(scalar_finite_diff(lambda v: np.sum(v**2), np.array([1.0, -2.0]), 1e-3), [2.0, -4.0])
     assert scalar_finite_diff(lambda v: v**2, 3.0, 1e-3) == pytest.approx(6.0)
 
 
+@pytest.mark.todo("1.2.1")
 def test_batched_matches_one_point_at_a_time():
     rng = np.random.default_rng(0)
     points = rng.normal(size=(6, 3))
@@ -56,6 +63,7 @@ def test_batched_matches_one_point_at_a_time():
     np.testing.assert_array_equal(batched, single)
 
 
+@pytest.mark.todo("1.2.1")
 def test_batched_calls_f_once():
     calls = []
 
@@ -98,6 +106,7 @@ def test_rejects_non_numeric_x():
         (lambda v: np.inf, "f must return a finite number"),
     ],
 )
+@pytest.mark.todo("1.2.1")
 def test_rejects_f_that_does_not_return_a_finite_scalar(f, message):
     with pytest.raises(ValueError, match=message):
         scalar_finite_diff(f, np.zeros(2), 1e-3)
@@ -108,6 +117,7 @@ def test_rejects_f_that_is_not_callable():
         scalar_finite_diff(3.0, np.zeros(2), 1e-3)
 
 
+@pytest.mark.todo("1.2.1")
 def test_batched_rejects_wrong_number_of_values():
     with pytest.raises(ValueError, match="one value per perturbed point"):
         batched_finite_diff(lambda p: np.zeros(3), np.zeros((2, 2)), 0.1)

@@ -41,21 +41,25 @@ def separable_problem(seed=0, num_per_class=30):
 # --- sigmoid -----------------------------------------------------------------------------
 
 
+@pytest.mark.todo("2.2.1")
 def test_sigmoid_matches_the_textbook_formula_where_that_is_safe():
     z = np.linspace(-30, 30, 121)
     np.testing.assert_allclose(sigmoid(z), 1.0 / (1.0 + np.exp(-z)), rtol=1e-13, atol=0)
 
 
+@pytest.mark.todo("2.2.1")
 def test_sigmoid_uses_the_standard_sign_convention():
     assert sigmoid(0.0) == 0.5
     assert sigmoid(2.0) > 0.5 > sigmoid(-2.0)
 
 
+@pytest.mark.todo("2.2.1")
 def test_sigmoid_is_symmetric():
     z = np.linspace(-40, 40, 81)
     np.testing.assert_allclose(sigmoid(-z), 1.0 - sigmoid(z), atol=1e-16)
 
 
+@pytest.mark.todo("2.2.1")
 def test_sigmoid_extremes_are_exact_and_silent():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
@@ -66,6 +70,7 @@ def test_sigmoid_extremes_are_exact_and_silent():
     assert not np.any(np.isnan(values))
 
 
+@pytest.mark.todo("2.2.1")
 def test_sigmoid_keeps_shape():
     assert sigmoid(np.zeros((2, 3, 4))).shape == (2, 3, 4)
     assert np.ndim(sigmoid(1.0)) == 0
@@ -92,6 +97,7 @@ def test_add_bias_feature_appends_a_column_of_ones():
     np.testing.assert_array_equal(augmented, [[1.0, 2.0, 1.0], [3.0, 4.0, 1.0]])
 
 
+@pytest.mark.todo("2.2.2")
 def test_predict_prob_uses_the_bias_as_the_last_weight():
     classifier = TwoClassLogisticRegressionClassifier(2)
     classifier.weights[:] = [1.0, -2.0, 0.5]
@@ -100,6 +106,7 @@ def test_predict_prob_uses_the_bias_as_the_last_weight():
     np.testing.assert_allclose(classifier.predict_prob(X), expected, rtol=1e-14)
 
 
+@pytest.mark.todo("2.2.2")
 def test_untrained_two_class_model_says_one_half():
     np.testing.assert_array_equal(TwoClassLogisticRegressionClassifier(3).predict_prob(np.ones((4, 3))), 0.5)
 
@@ -110,6 +117,8 @@ def test_predict_thresholds_the_probability_at_one_half():
     np.testing.assert_array_equal(classifier.predict(np.array([[0.0], [0.999], [1.001], [5.0]])), [0, 0, 1, 1])
 
 
+@pytest.mark.todo("2.2.3")
+@pytest.mark.hidden  # shows the gradient of 2.1.1: instructor-only
 def test_first_fit_step_is_the_summed_gradient_of_equation_7():
     X, y = small_problem(seed=1)
     classifier = TwoClassLogisticRegressionClassifier(3)
@@ -118,6 +127,7 @@ def test_first_fit_step_is_the_summed_gradient_of_equation_7():
     np.testing.assert_allclose(classifier.weights, 0.05 * X_aug.T @ (y - 0.5), rtol=1e-13)
 
 
+@pytest.mark.todo("2.2.3")
 def test_fit_climbs_the_log_likelihood():
     X, y = small_problem(seed=2)
     classifier = TwoClassLogisticRegressionClassifier(3)
@@ -128,6 +138,7 @@ def test_fit_climbs_the_log_likelihood():
     assert np.all(np.diff(values) > 0)
 
 
+@pytest.mark.todo("2.2.3")
 def test_two_class_fit_returns_accuracy_before_and_after_each_step():
     X, y = separable_problem()
     binary = (y == 0).astype(int)
@@ -138,6 +149,7 @@ def test_two_class_fit_returns_accuracy_before_and_after_each_step():
     assert accuracies[-1] == accuracy(binary, classifier.predict(X)) == 1.0
 
 
+@pytest.mark.todo("2.2.3")
 def test_fit_continues_from_the_current_weights():
     X, y = small_problem(seed=3)
     once = TwoClassLogisticRegressionClassifier(3)
@@ -241,6 +253,8 @@ def test_log_likelihood_stays_finite_for_confident_mistakes():
     assert value == pytest.approx(-1000.0)
 
 
+@pytest.mark.todo("2.1.1")
+@pytest.mark.hidden  # shows the gradient of 2.1.1: instructor-only
 def test_gradient_matches_the_closed_form():
     X, y = small_problem(seed=5)
     weights = np.array([0.5, -1.0, 0.2, 0.3])
@@ -249,12 +263,14 @@ def test_gradient_matches_the_closed_form():
     np.testing.assert_allclose(log_likelihood_gradient(weights, X, y), expected, rtol=1e-12)
 
 
+@pytest.mark.todo("2.1.1")
 def test_gradient_check_passes_for_the_analytic_gradient():
     X, y = small_problem(seed=6, num_samples=25, num_features=4)
     weights = np.random.default_rng(6).normal(size=5)
     assert gradient_check(weights, X, y) < 1e-7
 
 
+@pytest.mark.todo("2.1.1")
 def test_gradient_check_catches_a_wrong_sign(monkeypatch):
     # The handout's equation (5) read literally gives sigma(-z): the gradient flips sign.
     monkeypatch.setattr(logreg, "log_likelihood_gradient", lambda w, X, y: -log_likelihood_gradient(w, X, y))
@@ -278,6 +294,7 @@ def test_gradient_functions_reject_mismatched_weights():
 # --- one-vs-rest ----------------------------------------------------------------------------
 
 
+@pytest.mark.todo("2.3.1")
 def test_each_class_model_takes_exactly_one_two_class_step_per_iteration():
     X, y = small_problem(seed=7, num_classes=4)
     multi = MultiClassLogisticRegressionClassifier(3, 4)
@@ -288,6 +305,7 @@ def test_each_class_model_takes_exactly_one_two_class_step_per_iteration():
         np.testing.assert_allclose(multi.classifiers[c].weights, single.weights, rtol=1e-13)
 
 
+@pytest.mark.todo("2.3.1")
 def test_class_models_share_the_weight_matrix():
     X, y = separable_problem()
     multi = MultiClassLogisticRegressionClassifier(2, 3)
@@ -297,6 +315,7 @@ def test_class_models_share_the_weight_matrix():
         np.testing.assert_allclose(classifier.predict_prob(X), multi.predict_prob(X)[:, c], rtol=1e-12)
 
 
+@pytest.mark.todo("2.3.1")
 def test_multi_class_learns_separable_blobs():
     X, y = separable_problem()
     multi = MultiClassLogisticRegressionClassifier(2, 3)
@@ -308,6 +327,7 @@ def test_multi_class_learns_separable_blobs():
     assert multi.predict_prob(X).shape == (90, 3)
 
 
+@pytest.mark.todo("2.3.1")
 def test_vectorized_fit_gives_the_same_numbers_as_the_per_class_loop():
     data = load_food_cutting()
     X_train, _, y_train, _ = train_test_split(data.features, data.labels, 0.3, seed=0)
@@ -319,6 +339,7 @@ def test_vectorized_fit_gives_the_same_numbers_as_the_per_class_loop():
     np.testing.assert_allclose(vectorized.weights, loop.weights, rtol=1e-9, atol=1e-9 * np.abs(loop.weights).max())
 
 
+@pytest.mark.todo("2.2.1")
 def test_predict_has_no_ties_when_probabilities_round_to_one():
     multi = MultiClassLogisticRegressionClassifier(1, 3)
     multi.weights[:] = [[100.0, 200.0, -5.0], [0.0, 0.0, 0.0]]
@@ -327,6 +348,7 @@ def test_predict_has_no_ties_when_probabilities_round_to_one():
     assert multi.predict(X)[0] == 1
 
 
+@pytest.mark.todo("2.3.1")
 def test_one_step_on_the_food_data_stays_finite():
     data = load_food_cutting()
     multi = MultiClassLogisticRegressionClassifier(data.features.shape[1], len(data.names))
@@ -336,6 +358,7 @@ def test_one_step_on_the_food_data_stays_finite():
     assert np.all(np.isfinite(multi.weights))
 
 
+@pytest.mark.todo("2.3.1")
 def test_training_exceeds_99_percent_within_70_iterations_on_this_machines_data():
     data = load_food_cutting()  # the course's file when data/data.npz exists, else the stand-in
     X_train, X_test, y_train, y_test = train_test_split(data.features, data.labels, test_fraction=0.3, seed=0)

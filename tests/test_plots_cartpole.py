@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 from matplotlib.figure import Figure
 
 from hwlib import CartPoleLinearPolicy, play_episode
@@ -27,6 +28,7 @@ def test_histogram_counts_every_policy():
     assert sum(patch.get_height() for patch in ax.patches) == len(rewards)
 
 
+@pytest.mark.todo("1.1.1")
 def test_episode_figure_draws_the_thresholds_and_the_cart_where_it_is():
     episode = play_episode(CartPoleLinearPolicy(BALANCING_PARAMS), seed=2)
     figure = plot_episode(episode, step=10)

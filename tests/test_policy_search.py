@@ -12,6 +12,7 @@ from hwlib.policy_search import (
 )
 
 
+@pytest.mark.todo("1.3.1")
 def test_eval_params_is_the_mean_of_single_episodes():
     params = np.array([0.2, -0.4, -0.8, -0.1])
     seeds = episode_seeds(5, seed=11)
@@ -19,10 +20,12 @@ def test_eval_params_is_the_mean_of_single_episodes():
     assert eval_params(params, num_rollouts=5, seed=11) == pytest.approx(expected)
 
 
+@pytest.mark.todo("1.3.1")
 def test_eval_params_of_a_balancing_policy_is_the_maximum():
     assert eval_params(BALANCING_PARAMS, num_rollouts=8, seed=0) == 500.0
 
 
+@pytest.mark.todo("1.3.1")
 def test_eval_params_batch_scores_each_row_on_its_own_seeds():
     params = np.array([BALANCING_PARAMS, [0.0, 0.0, 0.0, 0.0]])
     seeds = np.array([[1, 2], [3, 4]])
@@ -49,6 +52,7 @@ def test_eval_params_batch_rejects_mismatched_seeds():
         eval_params_batch(np.zeros((2, 4)), np.zeros((3, 2), dtype=int))
 
 
+@pytest.mark.todo("1.3.3")
 def test_training_with_the_defaults_converges_within_seven_iterations():
     run = train_cartpole_policy(num_training_iterations=20, seed=0)
     assert run.rewards.shape == (21,)
@@ -57,6 +61,7 @@ def test_training_with_the_defaults_converges_within_seven_iterations():
     assert eval_params(run.policy.params, num_rollouts=20, seed=12345) == 500.0
 
 
+@pytest.mark.todo("1.3.3")
 def test_training_is_deterministic_for_a_seed():
     first = train_cartpole_policy(num_training_iterations=4, seed=3)
     second = train_cartpole_policy(num_training_iterations=4, seed=3)
@@ -64,6 +69,7 @@ def test_training_is_deterministic_for_a_seed():
     np.testing.assert_array_equal(first.policy.params, second.policy.params)
 
 
+@pytest.mark.todo("1.3.2")
 def test_training_follows_the_gradient_ascent_update():
     # One iteration from zeros by hand: the same seeds, the same finite differences, one step.
     learning_rate, fd_step, num_rollouts, seed = 0.001, 0.5, 4, 7
@@ -78,6 +84,7 @@ def test_training_follows_the_gradient_ascent_update():
     assert run.rewards[0] == pytest.approx(g(np.zeros(4)))
 
 
+@pytest.mark.todo("1.3.2")
 def test_many_runs_side_by_side_equal_separate_runs():
     starts = np.array([[0.0, 0.0, 0.0, 0.0], [0.1, -0.2, 0.3, -0.4]])
     params, rewards = train_cartpole_policies(starts, [0.001, 0.003], [5, 6], num_training_iterations=3)
@@ -119,6 +126,7 @@ def test_iterations_to_converge():
         iterations_to_converge([])
 
 
+@pytest.mark.todo("1.3.3")
 def test_learning_rate_sweep_reports_a_fraction_per_rate():
     sweep = learning_rate_sweep([1e-6, DEFAULT_LEARNING_RATE], num_seeds=3, num_training_iterations=8)
     assert sweep.rewards.shape == (2, 3, 9)

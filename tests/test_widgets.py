@@ -9,6 +9,7 @@ from hwlib.widgets import PRESETS, SliderPanel, render_panel, reward_text, simul
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.todo("1.1.1")
 def test_render_panel_plays_the_episode_and_draws_it():
     frame = render_panel(BALANCING_PARAMS, seed=0)
     assert frame.episode.total_reward == 500
@@ -16,6 +17,7 @@ def test_render_panel_plays_the_episode_and_draws_it():
     assert frame.png.startswith(PNG_SIGNATURE)
 
 
+@pytest.mark.todo("1.1.1")
 def test_render_panel_reward_is_the_librarys_reward():
     params = (0.5, -0.3, -1.2, 0.4)
     frame = render_panel(params, seed=4)
@@ -23,6 +25,7 @@ def test_render_panel_reward_is_the_librarys_reward():
     assert frame.reward_text == f"Total reward: {int(expected)}"
 
 
+@pytest.mark.todo("1.1.1")
 def test_render_panel_redraws_the_same_view_differently_for_other_params():
     view = EpisodeView()
     balanced = render_panel(BALANCING_PARAMS, seed=0, view=view)
@@ -31,6 +34,7 @@ def test_render_panel_redraws_the_same_view_differently_for_other_params():
     assert balanced.episode.num_steps == 500 and falling.episode.num_steps < 20
 
 
+@pytest.mark.todo("1.1.1")
 def test_step_moves_only_the_picture():
     episode = simulate_episode(ALWAYS_LEFT_PARAMS, 0)
     view = EpisodeView()
@@ -46,12 +50,14 @@ def test_render_panel_rejects_bad_controls(params, seed):
         render_panel(params, seed)
 
 
+@pytest.mark.todo("1.1.1")
 def test_reward_text_marks_only_the_maximum():
     falling = simulate_episode(ALWAYS_LEFT_PARAMS, 0)
     assert reward_text(falling) == f"Total reward: {int(falling.total_reward)}"
     assert reward_text(simulate_episode(BALANCING_PARAMS, 0)) == "Total reward: 500 (the maximum)"
 
 
+@pytest.mark.todo("1.1.1")
 def test_panel_responds_to_sliders_seed_and_presets():
     panel = SliderPanel(BALANCING_PARAMS, seed=0)
     assert "Total reward: 500" in panel.reward_label.value
@@ -70,6 +76,7 @@ def test_panel_responds_to_sliders_seed_and_presets():
     assert f"Total reward: {int(run_policy(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=3))}" in panel.reward_label.value
 
 
+@pytest.mark.todo("1.1.1")
 def test_panel_step_slider_spans_the_episode_and_redraws():
     panel = SliderPanel(ALWAYS_LEFT_PARAMS, seed=0)
     assert panel.step_slider.max == panel.episode.num_steps == panel.step_slider.value
@@ -78,6 +85,7 @@ def test_panel_step_slider_spans_the_episode_and_redraws():
     assert panel.image.value != before
 
 
+@pytest.mark.todo("1.1.1")
 def test_sliders_cover_at_least_minus_two_to_two():
     panel = SliderPanel()
     assert all(slider.min <= -2 and slider.max >= 2 for slider in panel.param_sliders)

@@ -1,0 +1,441 @@
+"""The release tool: the student edition of this kit, and the rules on a small made-up kit.
+
+Instructor-only: the student edition leaves this file out.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pkgutil
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from hwlib.release import (
+    INSTRUCTOR_ONLY,
+    ReleaseError,
+    build_student_edition,
+    find_blocks,
+    kit_files,
+    student_files,
+    transform_notebook,
+    transform_python,
+)
+
+REPO = Path(__file__).resolve().parents[1]
+MARKER = re.compile(r"(BEGIN|END) SOLUTION|### HINT:")
+
+
+@pytest.fixture(scope="module")
+def edition(tmp_path_factory):
+    out = tmp_path_factory.mktemp("edition") / "student"
+    build_student_edition(REPO, out)
+    return out
+
+
+def _tree(root):
+    return {
+        path.relative_to(root).as_posix(): (path.read_bytes(), path.stat().st_mode & 0o777)
+        for path in sorted(root.rglob("*"))
+        if path.is_file()
+    }
+
+
+def _source_blocks(path):
+    """(todo, body lines) of every solution block of a source file."""
+    text = path.read_text(encoding="utf-8")
+    if path.suffix == ".ipynb":
+        found = []
+        for cell in json.loads(text)["cells"]:
+            lines = "".join(cell["source"]).split("\n")
+            style = "markdown" if cell["cell_type"] == "markdown" else "code"
+            found += [(b.todo, lines[b.body_start:b.end], style) for b in find_blocks(lines, str, style)]
+        return found
+    lines = text.split("\n")
+    return [(b.todo, lines[b.body_start:b.end], "code") for b in find_blocks(lines, str)]
+
+
+# --------------------------------------------------------------------------------------------
+# The student edition of this kit
+# --------------------------------------------------------------------------------------------
+
+
+def test_building_twice_gives_byte_identical_output(edition, tmp_path):
+    build_student_edition(REPO, tmp_path / "again")
+    assert _tree(tmp_path / "again") == _tree(edition)
+
+
+def test_instructor_files_are_left_out_and_the_rest_is_there(edition):
+    names = set(_tree(edition))
+    for name in names:
+        assert not any(name == p or (p.endswith("/") and name.startswith(p)) for p in INSTRUCTOR_ONLY), name
+    assert "hwlib/release.py" not in names and "tests/test_release.py" not in names and "tests/test_grading.py" not in names
+    assert not any(name.startswith(("tests/hidden/", "tests/wrong_solutions/")) for name in names)
+    expected = {name for name in kit_files(REPO) if not any(name == p or (p.endswith("/") and name.startswith(p)) for p in INSTRUCTOR_ONLY)}
+    assert names == expected
+    for needed in ("hwlib/grade.py", "hwlib/__init__.py", "pyproject.toml", "requirements.txt", "README.md", "conftest.py"):
+        assert needed in names
+    assert any(name.startswith("notebooks/") and name.endswith(".ipynb") for name in names)
+    assert not any(name.endswith(".npz") or name.startswith("data/audio/") for name in names)
+    if (REPO / ".ci" / "run").exists():
+        assert (edition / ".ci" / "run").stat().st_mode & 0o111
+
+
+def test_no_marker_and_no_solution_line_reaches_the_students(edition):
+    for name in _tree(edition):
+        if name.endswith((".py", ".ipynb")):
+            text = (edition / name).read_text(encoding="utf-8")
+            assert not MARKER.search(text), name
+            source = REPO / name
+            outside = _lines_outside_blocks(source)
+            for todo, body, _ in _source_blocks(source):
+                for line in body:
+                    stripped = line.strip()
+                    if len(stripped) > 12 and not stripped.startswith("#") and stripped not in outside:
+                        assert stripped not in text, f"{name}: solution line of TODO {todo} leaked: {stripped}"
+
+
+def _lines_outside_blocks(path):
+    inside = {line.strip() for _, body, _ in _source_blocks(path) for line in body}
+    text = path.read_text(encoding="utf-8")
+    if path.suffix == ".ipynb":
+        text = "\n".join("".join(cell["source"]) for cell in json.loads(text)["cells"])
+    return {line.strip() for line in text.split("\n")} - inside
+
+
+def test_library_blocks_become_todo_stubs(edition):
+    seen = set()
+    for path in sorted((REPO / "hwlib").rglob("*.py")):
+        name = path.relative_to(REPO).as_posix()
+        if name == "hwlib/release.py":
+            continue
+        blocks = _source_blocks(path)
+        student = (edition / name).read_text(encoding="utf-8")
+        for todo, body, _ in blocks:
+            seen.add(todo)
+            stub = re.compile(rf'raise NotImplementedError\("TODO {re.escape(todo)}: [^"]+"\)|^\w+ = None  # TODO {re.escape(todo)}: .+$', re.M)
+            assert stub.search(student), f"{name}: no stub for TODO {todo}"
+    assert {"1.1.1", "1.2.1", "1.3.1", "1.3.2", "1.3.3", "2.1.1", "2.2.1", "2.2.2", "2.2.3", "2.3.1"} <= seen
+
+
+def test_no_answer_reaches_the_students_another_way(edition):
+    """The gradient of 2.1.1 and the labels of 2.3.1 appear nowhere: not in docstrings, hidden
+    tests, benchmarks or notebooks."""
+    leaks = re.compile(r"\.T *@|== *class_index|y_i - p_i|y - \\sigma|targets - |labels - sigmoid|mark\.hidden")
+    for name in _tree(edition):
+        if name.endswith((".py", ".ipynb", ".md", ".txt")):
+            text = (edition / name).read_text(encoding="utf-8")
+            assert not leaks.search(text), f"{name}: {leaks.search(text)[0]!r}"
+    learning_rate = re.compile(r"\b0\.0007\b|\b7e-0?4\b")  # the answer of 1.3.3
+    for name in _tree(edition):
+        if name.endswith((".py", ".ipynb")):
+            assert not learning_rate.search((edition / name).read_text(encoding="utf-8")), name
+    student_tests = (edition / "tests" / "test_logreg.py").read_text()
+    assert "def test_gradient_matches_the_closed_form" not in student_tests
+    assert "def test_first_fit_step_is_the_summed_gradient_of_equation_7" not in student_tests
+    assert "def test_gradient_check_passes_for_the_analytic_gradient" in student_tests
+    source_tests = (REPO / "tests" / "test_logreg.py").read_text()
+    assert leaks.search(source_tests)  # the check above can fail: the instructor's tests do show it
+
+
+def test_module_level_block_becomes_none_and_the_module_still_imports(edition):
+    text = (edition / "hwlib" / "policy_search.py").read_text()
+    assert re.search(r"^DEFAULT_LEARNING_RATE = None  # TODO 1\.3\.3: ", text, re.M)
+
+
+def test_every_module_of_the_student_edition_imports(edition):
+    modules = sorted(
+        name for _, name, _ in pkgutil.walk_packages([str(edition / "hwlib")], prefix="hwlib.")
+    )
+    assert "hwlib.grade" in modules and "hwlib.release" not in modules
+    code = "import importlib, sys\nfor name in sys.argv[1:]:\n    importlib.import_module(name)\nimport hwlib\nprint(hwlib.__file__)"
+    env = dict(os.environ, PYTHONPATH=str(edition), MPLBACKEND="Agg")
+    result = subprocess.run([sys.executable, "-c", code, "hwlib", *modules], cwd=edition, env=env, capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert Path(result.stdout.strip()).resolve().is_relative_to(edition.resolve())
+
+
+def test_notebooks_are_valid_without_outputs_and_with_stubs(edition):
+    notebooks = sorted((REPO / "notebooks").glob("*.ipynb"))
+    assert notebooks
+    for source in notebooks:
+        student_path = edition / "notebooks" / source.name
+        notebook = nbformat.read(student_path, as_version=4)
+        nbformat.validate(notebook)
+        assert "widgets" not in notebook.metadata
+        original = json.loads(source.read_text(encoding="utf-8"))["cells"]
+        assert len(notebook.cells) == len(original)
+        for cell, before in zip(notebook.cells, original):
+            assert cell.get("id") == before.get("id")
+            if cell.cell_type == "code":
+                assert cell.outputs == [] and cell.execution_count is None
+                assert "execution" not in cell.metadata
+            source_text = "".join(before["source"])
+            if "BEGIN SOLUTION" not in source_text:
+                assert cell.source == source_text
+            elif cell.cell_type == "code":
+                assert "# YOUR CODE HERE\nraise NotImplementedError()" in cell.source
+                assert re.search(r"^# TODO \d+(\.\d+)+: .+$", cell.source, re.M)
+            else:
+                assert "YOUR ANSWER HERE" in cell.source
+        stored = student_path.read_text(encoding="utf-8")
+        assert stored == nbformat.writes(notebook) + "\n"  # the layout Jupyter itself writes
+
+
+def test_pyproject_runs_the_notebooks_lax_and_readme_has_the_student_note(edition):
+    source = (REPO / "pyproject.toml").read_text()
+    student = (edition / "pyproject.toml").read_text()
+    assert re.search(r'^addopts = ".*--nbval-lax', student, re.M)
+    assert not re.search(r"--nbval(?![-\w])", student)
+    assert student.replace("--nbval-lax", "--nbval") == source
+    readme = (edition / "README.md").read_text()
+    assert "**Student edition.**" in readme and "python -m hwlib.grade" in readme
+    assert "INSTRUCTOR ONLY" not in readme
+
+
+def test_keep_puts_solutions_back_and_everything_kept_equals_the_source(tmp_path):
+    everything = frozenset({"1.1.1", "1.1.2", "1.1.3", "1.2.1", "1.3.1", "1.3.2", "1.3.3",
+                            "2.1.1", "2.2.1", "2.2.2", "2.2.3", "2.3.1", "2.3.2"})
+    files = student_files(REPO, keep=everything)
+    for name in ("hwlib/cartpole.py", "hwlib/finite_diff.py", "hwlib/policy_search.py", "hwlib/logreg.py"):
+        source_lines = [line for line in (REPO / name).read_text().split("\n") if not MARKER.search(line)]
+        assert files[name][0].decode().split("\n") == source_lines
+    partial = student_files(REPO, keep=frozenset({"1.2.1"}))
+    finite_diff = partial["hwlib/finite_diff.py"][0].decode()
+    assert "NotImplementedError" not in finite_diff and "(2.0 * steps)" in finite_diff
+    assert "TODO 1.1.1" in partial["hwlib/cartpole.py"][0].decode()
+
+
+# --------------------------------------------------------------------------------------------
+# Rules, on a made-up kit
+# --------------------------------------------------------------------------------------------
+
+PYPROJECT = """\
+[tool.pytest.ini_options]
+testpaths = ["tests", "notebooks"]
+addopts = "--nbval --nbval-current-env -p no:cacheprovider"
+"""
+
+MODULE = '''\
+"""A module with two TODOs."""
+
+import numpy as np
+
+### BEGIN SOLUTION 1.3.3
+RATE = 0.5
+### END SOLUTION 1.3.3
+
+
+def double(x):
+    """Twice x."""
+    x = np.asarray(x)
+    ### BEGIN SOLUTION 1.1.1
+    ### HINT: multiply by two
+    result = 2 * x
+    return result
+    ### END SOLUTION 1.1.1
+
+
+class Thing:
+    def value(self):
+        if True:
+            ### BEGIN SOLUTION 1.2.1
+            return 3
+            ### END SOLUTION 1.2.1
+        return 0
+'''
+
+
+def _notebook(cells):
+    notebook = nbformat.v4.new_notebook()
+    for index, (kind, source) in enumerate(cells):
+        cell = nbformat.v4.new_code_cell(source) if kind == "code" else nbformat.v4.new_markdown_cell(source)
+        cell["id"] = f"cell{index}"
+        if kind == "code":
+            cell["execution_count"] = index + 1
+            cell["outputs"] = [nbformat.v4.new_output("stream", name="stdout", text="hello\n")]
+            cell["metadata"]["execution"] = {"iopub.execute_input": "2026-01-01T00:00:00Z"}
+        notebook.cells.append(cell)
+    notebook.metadata["widgets"] = {"application/vnd.jupyter.widget-state+json": {"state": {}}}
+    return nbformat.writes(notebook) + "\n"
+
+
+NOTEBOOK_CELLS = [
+    ("markdown", "# Title"),
+    ("code", "import numpy as np"),
+    ("code", "### BEGIN SOLUTION 1.1.2\nanswer = 42\nprint(answer)\n### END SOLUTION 1.1.2\nprint('after')"),
+    ("markdown", "Derive it.\n<!-- BEGIN SOLUTION 2.1.1 -->\n$$x^2$$\n<!-- END SOLUTION 2.1.1 -->\nDone."),
+]
+
+
+def make_kit(root, module=MODULE, notebook_cells=NOTEBOOK_CELLS):
+    files = {
+        "pyproject.toml": PYPROJECT,
+        "README.md": "# The kit\n\nIntro.\n<!-- BEGIN INSTRUCTOR ONLY -->\nsecret\n<!-- END INSTRUCTOR ONLY -->\nEnd.\n",
+        "hwlib/__init__.py": "",
+        "hwlib/mod.py": module,
+        "hwlib/release.py": "# the tool\n",
+        "notebooks/nb.ipynb": _notebook(notebook_cells),
+        "tests/test_mod.py": "def test_x():\n    pass\n",
+        "tests/hidden/test_secret.py": "import pytest\npytestmark = pytest.mark.hidden\n",
+        "tests/wrong_solutions/mistake.txt": "# todo: 1.1.1\n",
+        "data/README.md": "where the data goes\n",
+        "data/data.npz": "not really\n",
+        "data/audio/0_apple.wav": "not really\n",
+        ".venv/lib/site.py": "x\n",
+        "hwlib/__pycache__/mod.cpython-311.pyc": "x\n",
+        "build/lib/hwlib/mod.py": "x\n",
+        "hwlib.egg-info/PKG-INFO": "x\n",
+        "test-artifacts/shot.png": "x\n",
+    }
+    for name, text in files.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+    return root
+
+
+def test_made_up_kit_student_edition(tmp_path):
+    source = make_kit(tmp_path / "src")
+    build_student_edition(source, tmp_path / "out")
+    names = sorted(_tree(tmp_path / "out"))
+    assert names == ["README.md", "data/README.md", "hwlib/__init__.py", "hwlib/mod.py", "notebooks/nb.ipynb", "pyproject.toml", "tests/test_mod.py"]
+    module = (tmp_path / "out" / "hwlib" / "mod.py").read_text()
+    assert 'RATE = None  # TODO 1.3.3: ' in module
+    assert '    x = np.asarray(x)\n    raise NotImplementedError("TODO 1.1.1: multiply by two")\n\n' in module
+    assert '        if True:\n            raise NotImplementedError("TODO 1.2.1: ' in module
+    assert "result = 2 * x" not in module and "return 3" not in module
+    compile(module, "mod.py", "exec")
+    notebook = nbformat.read(tmp_path / "out" / "notebooks" / "nb.ipynb", as_version=4)
+    assert notebook.cells[2].source == "# TODO 1.1.2: " + notebook.cells[2].source.split(": ", 1)[1].split("\n")[0] + (
+        "\n# YOUR CODE HERE\nraise NotImplementedError()\nprint('after')"
+    )
+    assert notebook.cells[3].source == "Derive it.\nYOUR ANSWER HERE\nDone."
+    assert all(cell.get("outputs", []) == [] for cell in notebook.cells)
+    assert (tmp_path / "out" / "README.md").read_text().startswith("# The kit\n\n> **Student edition.**")
+    assert "secret" not in (tmp_path / "out" / "README.md").read_text()
+
+
+@pytest.mark.skipif(shutil.which("git") is None, reason="needs git")
+def test_files_come_from_git_when_the_kit_is_a_repository(tmp_path):
+    source = make_kit(tmp_path / "src")
+    (source / ".gitignore").write_text("ignored.txt\n")
+    (source / "ignored.txt").write_text("x\n")
+    (source / "untracked.txt").write_text("x\n")
+    git = ["git", "-C", str(source), "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run([*git, "init", "-q"], check=True)
+    subprocess.run([*git, "add", "hwlib/mod.py", "README.md"], check=True)
+    names = kit_files(source)
+    assert "untracked.txt" in names and "hwlib/mod.py" in names and ".gitignore" in names
+    assert "ignored.txt" not in names
+    assert not any(name.startswith((".git/", ".venv/", "build/", "test-artifacts/")) or ".egg-info" in name or name.endswith(".npz") for name in names)
+
+
+@pytest.mark.parametrize(
+    ("module", "message"),
+    [
+        ("x = 1\n### BEGIN SOLUTION 1.1.1\ny = 2\n", r"hwlib/mod\.py:2: BEGIN SOLUTION 1\.1\.1 has no END SOLUTION"),
+        ("def f():\n    return 1\n    ### END SOLUTION 1.1.1\n", r"hwlib/mod\.py:3: END SOLUTION 1\.1\.1 without a BEGIN"),
+        ("def f():\n    ### BEGIN SOLUTION 1.1.1\n    ### BEGIN SOLUTION 1.2.1\n    return 1\n    ### END SOLUTION 1.2.1\n    ### END SOLUTION 1.1.1\n",
+         r"hwlib/mod\.py:3: nested BEGIN SOLUTION 1\.2\.1: BEGIN SOLUTION 1\.1\.1 of hwlib/mod\.py:2 is still open"),
+        ("def f():\n    ### BEGIN SOLUTION 1.1.1\n    return 1\n    ### END SOLUTION 1.2.1\n",
+         r"hwlib/mod\.py:4: END SOLUTION 1\.2\.1 closes BEGIN SOLUTION 1\.1\.1 of hwlib/mod\.py:2: the ids differ"),
+        ("def f():\n    ### BEGIN SOLUTION\n    return 1\n    ### END SOLUTION\n", r"hwlib/mod\.py:2: solution marker without a TODO id"),
+        ("def f():\n    ### BEGIN SOLUTION 9.9.9\n    return 1\n    ### END SOLUTION 9.9.9\n", r"hwlib/mod\.py:2: unknown TODO id 9\.9\.9"),
+        ("def f():\n    ### BEGIN SOLUTION one\n    return 1\n", r"hwlib/mod\.py:2: 'one' is not a TODO id"),
+        ("def f():\n    # BEGIN SOLUTION 1.1.1\n    return 1\n", r"hwlib/mod\.py:2: malformed solution marker"),
+        ("def f():\n    ### BEGIN SOLUTION 1.1.1\n    return 1\n### END SOLUTION 1.1.1\n", r"hwlib/mod\.py:4: END SOLUTION 1\.1\.1 is not indented like its BEGIN"),
+        ("### BEGIN SOLUTION 1.3.3\nprint('hi')\n### END SOLUTION 1.3.3\n", r"hwlib/mod\.py:2: a module-level solution block may only assign names"),
+    ],
+    ids=["begin-without-end", "end-without-begin", "nested", "mismatched-ids", "no-id", "unknown-id", "bad-id",
+         "malformed", "end-indentation", "module-level-code"],
+)
+def test_marker_errors_name_the_file_and_line(tmp_path, module, message):
+    source = make_kit(tmp_path / "src", module=module)
+    with pytest.raises(ReleaseError, match=message):
+        build_student_edition(source, tmp_path / "out")
+    assert not (tmp_path / "out").exists()  # nothing is written on an error
+
+
+def test_notebook_marker_errors_name_the_file_line_and_cell(tmp_path):
+    cells = [("code", "x = 1"), ("code", "y = 2\n### BEGIN SOLUTION 1.1.2\nanswer = 42")]
+    source = make_kit(tmp_path / "src", notebook_cells=cells)
+    raw_lines = (source / "notebooks" / "nb.ipynb").read_text().split("\n")
+    file_line = next(number for number, line in enumerate(raw_lines, 1) if "BEGIN SOLUTION 1.1.2" in line)
+    with pytest.raises(ReleaseError, match=rf"notebooks/nb\.ipynb:{file_line} \(cell 2, line 2 of the cell\): BEGIN SOLUTION 1\.1\.2 has no END"):
+        build_student_edition(source, tmp_path / "out")
+    markdown = [("markdown", "<!-- BEGIN SOLUTION 2.1.1 -->\nx\n<!-- END SOLUTION 2.3.2 -->")]
+    source2 = make_kit(tmp_path / "src2", notebook_cells=markdown)
+    with pytest.raises(ReleaseError, match=r"nb\.ipynb:\d+ \(cell 1, line 3 of the cell\): END SOLUTION 2\.3\.2 closes BEGIN SOLUTION 2\.1\.1"):
+        build_student_edition(source2, tmp_path / "out2")
+
+
+def test_hidden_tests_in_visible_test_files_are_dropped(tmp_path):
+    source = make_kit(tmp_path / "src")
+    (source / "tests" / "test_mod.py").write_text(
+        "import pytest\n\n\ndef test_visible():\n    pass\n\n\n"
+        "@pytest.mark.todo(\"1.1.1\")\n@pytest.mark.hidden  # instructor-only\ndef test_secret():\n    assert 2 + 2 == 4\n\n\n"
+        "def test_also_visible():\n    pass\n\n\n@pytest.mark.hidden\nclass TestSecret:\n    def test_x(self):\n        pass\n"
+    )
+    build_student_edition(source, tmp_path / "out")
+    student = (tmp_path / "out" / "tests" / "test_mod.py").read_text()
+    assert student == "import pytest\n\n\ndef test_visible():\n    pass\n\n\ndef test_also_visible():\n    pass\n"
+
+
+@pytest.mark.parametrize(
+    ("text", "line"),
+    [
+        ("import pytest\n\npytestmark = pytest.mark.hidden\n", 3),
+        ("import pytest\n\n\nclass TestX:\n    @pytest.mark.hidden\n    def test_x(self):\n        pass\n", 5),
+    ],
+    ids=["module-level", "method"],
+)
+def test_hidden_marks_that_cannot_be_dropped_are_an_error(tmp_path, text, line):
+    source = make_kit(tmp_path / "src")
+    (source / "tests" / "test_mod.py").write_text(text)
+    with pytest.raises(ReleaseError, match=rf"tests/test_mod\.py:{line}: only top-level tests can be marked hidden"):
+        build_student_edition(source, tmp_path / "out")
+
+
+def test_replacement_must_match_the_blocks(tmp_path):
+    text = "def f():\n    ### BEGIN SOLUTION 1.1.1\n    return 1\n    ### END SOLUTION 1.1.1\n"
+    assert transform_python(text, "m.py", replace={"1.1.1": "return 2"}) == "def f():\n    return 2\n"
+    with pytest.raises(ReleaseError, match="TODO 1.2.1 has 0 solution block"):
+        transform_python(text, "m.py", replace={"1.2.1": "return 2"})
+    with pytest.raises(ReleaseError, match="TODO 1.1.1 has 1 solution block.*but 2 replacement"):
+        transform_python(text, "m.py", replace={"1.1.1": ["return 2", "return 3"]})
+    notebook = _notebook([("code", "### BEGIN SOLUTION 1.1.2\nx = 1\n### END SOLUTION 1.1.2")])
+    replaced = json.loads(transform_notebook(notebook, "nb.ipynb", replace={"1.1.2": "x = 2"}))
+    assert "".join(replaced["cells"][0]["source"]) == "x = 2"
+
+
+def test_command_line_refuses_to_overwrite_and_replaces_an_earlier_edition_with_force(tmp_path):
+    source = make_kit(tmp_path / "src")
+    command = [sys.executable, "-m", "hwlib.release", "student"]
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+
+    def run(*args):
+        return subprocess.run([*command, *args, "--source", str(source)], cwd=tmp_path, env=env, capture_output=True, text=True)
+
+    first = run(str(tmp_path / "out"))
+    assert first.returncode == 0 and "student edition: 7 files" in first.stdout
+    again = run(str(tmp_path / "out"))
+    assert again.returncode == 1 and "not empty (pass --force" in again.stderr
+    (tmp_path / "out" / "stale.txt").write_text("from an earlier build\n")
+    forced = run(str(tmp_path / "out"), "--force")
+    assert forced.returncode == 0 and not (tmp_path / "out" / "stale.txt").exists()
+    (tmp_path / "precious").mkdir()
+    (tmp_path / "precious" / "thesis.tex").write_text("x\n")
+    refused = run(str(tmp_path / "precious"), "--force")
+    assert refused.returncode == 1 and "not a kit; refusing to delete it" in refused.stderr
+    assert (tmp_path / "precious" / "thesis.tex").exists()
+    inside = run(str(source))
+    assert inside.returncode == 1 and "must not be the kit" in inside.stderr
+    broken = make_kit(tmp_path / "broken", module="### BEGIN SOLUTION 1.1.1\nx = 1\n")
+    result = subprocess.run([*command, str(tmp_path / "out3"), "--source", str(broken)], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert result.returncode == 1 and "hwlib/mod.py:1: BEGIN SOLUTION 1.1.1 has no END SOLUTION" in result.stderr
