@@ -307,8 +307,6 @@ def check_p1_slider_panel(page, lab):
 
 
 def test_p2_runs_in_jupyterlab(page, lab):
-    if not (NOTEBOOKS / P2_NOTEBOOK).exists():
-        pytest.skip(f"notebooks/{P2_NOTEBOOK} does not exist yet")
     with screenshot_on_failure(page, "p2"):
         check_p2_runs(page, lab)
 
