@@ -13,6 +13,7 @@ import re
 import subprocess
 import sys
 
+import nbformat
 import numpy as np
 import pytest
 
@@ -225,3 +226,31 @@ def test_out_dir_under_a_file_is_refused(tmp_path):
     blocker.write_text("")
     with pytest.raises(report.ReportError, match="cannot create OUT_DIR"):
         report.check_out_dir(blocker / "report")
+
+
+def _stored_text(notebook_name):
+    """Every printed line of a notebook as it is stored in the kit."""
+    notebook = nbformat.read(report.NOTEBOOK_DIR / notebook_name, as_version=4)
+    return "\n".join(output.get("text", "") for cell in notebook.cells if cell.cell_type == "code" for output in cell.outputs)
+
+
+def test_report_settings_match_the_stored_p1_notebook(answers):
+    # The report repeats the notebook's settings; this catches one of them changing alone.
+    text = _stored_text("p1_cartpole_finite_difference.ipynb")
+    random_policies, training = answers["p1_random_policies"], answers["p1_training"]
+    assert f"{random_policies['num_at_max']} of {random_policies['num_policies']} random policies" in text
+    assert f"learning rate: {training['learning_rate']}" in text
+    assert f"converged (500 from then on) at iteration: {training['converged_at']}" in text
+    assert f"final parameters: {np.round(training['final_params'], 3).tolist()}" in text
+    for rate, fraction in zip(answers["p1_learning_rate_sweep"]["learning_rates"], answers["p1_learning_rate_sweep"]["converged_fraction"]):
+        assert f"learning rate {rate:.1e}: {fraction:4.0%} of 20 seeds" in text
+
+
+def test_report_settings_match_the_stored_p2_notebook(answers):
+    results = answers["p2_results"]
+    if results["data_source"] != "synthetic stand-in":
+        pytest.skip("the stored notebook was run on the stand-in; this machine has the course's file")
+    text = _stored_text("p2_food_cutting_logistic_regression.ipynb")
+    assert f"final train accuracy: {results['final_train_accuracy']:.3f}" in text
+    assert f"test accuracy:        {results['test_accuracy']:.3f}" in text
+    assert f"first iteration with train accuracy above 99%: {results['first_iteration_above_99']}" in text
