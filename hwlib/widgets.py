@@ -110,11 +110,10 @@ class SliderPanel:
     def set_params(self, params):
         """Move the sliders to ``params`` and redraw once."""
         params = check_params(params, "params")
-        with self.widget.hold_trait_notifications():
-            for slider, value in zip(self.param_sliders, params):
-                slider.unobserve(self._on_episode_change, names="value")
-                slider.value = float(value)
-                slider.observe(self._on_episode_change, names="value")
+        for slider, value in zip(self.param_sliders, params):
+            slider.unobserve(self._on_episode_change, names="value")  # one replay for all four, not four
+            slider.value = float(value)
+            slider.observe(self._on_episode_change, names="value")
         self.refresh()
 
     def refresh(self):
