@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 # Debian's Chromium and the flags it is started with: one definition, shared with the report's PDF.
-from hwlib.report import CHROMIUM_ARGS, chromium_path  # noqa: F401
+from hwtools.report import CHROMIUM_ARGS, chromium_path  # noqa: F401
 
 STARTUP_TIMEOUT = 60  # seconds until the server must answer
 SHUTDOWN_TIMEOUT = 15  # seconds the server gets to stop after SIGTERM

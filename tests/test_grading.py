@@ -13,7 +13,7 @@ From the kit's own source it builds the student edition into a temporary folder 
 5. the grader itself survives an endless loop, a swallowed timeout, a crashing interpreter and
    a test file that cannot be imported, and refuses to grade an hwlib from elsewhere.
 
-Grading runs in subprocesses (see ``hwlib.grade``); each scenario grades only what it needs.
+Grading runs in subprocesses (see ``hwtools.grade``); each scenario grades only what it needs.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ from pathlib import Path
 
 import pytest
 
-from hwlib.grade import TODO_BY_ID, TODOS, grade, prerequisites, tagged_test_files
-from hwlib.release import build_student_edition
+from hwtools.grade import TODO_BY_ID, TODOS, grade, prerequisites, tagged_test_files
+from instructor.release import build_student_edition
 
 REPO = Path(__file__).resolve().parents[1]
 INSTRUCTOR_TESTS = REPO / "tests"
@@ -75,7 +75,7 @@ def student_kit(tmp_path_factory):
 def untouched_report(student_kit, tmp_path_factory):
     """The untouched student edition graded with its own grade command, as a student would."""
     json_file = tmp_path_factory.mktemp("untouched") / "grade.json"
-    command = [sys.executable, "-m", "hwlib.grade", str(student_kit), "--json", str(json_file)]
+    command = [sys.executable, "-m", "hwtools.grade", str(student_kit), "--json", str(json_file)]
     for todo in GRADED_TODOS:
         command += ["--todo", todo]
     result = subprocess.run(command, cwd=student_kit, env=kit_env(student_kit), capture_output=True, text=True)

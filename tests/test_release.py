@@ -17,7 +17,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from hwlib.release import (
+from instructor.release import (
     INSTRUCTOR_ONLY,
     ReleaseError,
     build_student_edition,
@@ -75,11 +75,11 @@ def test_instructor_files_are_left_out_and_the_rest_is_there(edition):
     names = set(_tree(edition))
     for name in names:
         assert not any(name == p or (p.endswith("/") and name.startswith(p)) for p in INSTRUCTOR_ONLY), name
-    assert "hwlib/release.py" not in names and "tests/test_release.py" not in names and "tests/test_grading.py" not in names
+    assert "instructor/release.py" not in names and "tests/test_release.py" not in names and "tests/test_grading.py" not in names
     assert not any(name.startswith(("tests/hidden/", "tests/wrong_solutions/")) for name in names)
     expected = {name for name in kit_files(REPO) if not any(name == p or (p.endswith("/") and name.startswith(p)) for p in INSTRUCTOR_ONLY)}
     assert names == expected
-    for needed in ("hwlib/grade.py", "hwlib/__init__.py", "pyproject.toml", "requirements.txt", "README.md", "conftest.py"):
+    for needed in ("hwtools/grade.py", "hwlib/__init__.py", "pyproject.toml", "requirements.txt", "README.md", "conftest.py"):
         assert needed in names
     assert any(name.startswith("notebooks/") and name.endswith(".ipynb") for name in names)
     assert not any(name.endswith(".npz") or name.startswith("data/audio/") for name in names)
@@ -113,7 +113,7 @@ def test_library_blocks_become_todo_stubs(edition):
     seen = set()
     for path in sorted((REPO / "hwlib").rglob("*.py")):
         name = path.relative_to(REPO).as_posix()
-        if name == "hwlib/release.py":
+        if name == "instructor/release.py":
             continue
         blocks = _source_blocks(path)
         student = (edition / name).read_text(encoding="utf-8")
@@ -153,7 +153,7 @@ def test_every_module_of_the_student_edition_imports(edition):
     modules = sorted(
         name for _, name, _ in pkgutil.walk_packages([str(edition / "hwlib")], prefix="hwlib.")
     )
-    assert "hwlib.grade" in modules and "hwlib.release" not in modules
+    assert "hwtools.grade" in modules and "instructor.release" not in modules
     code = "import importlib, sys\nfor name in sys.argv[1:]:\n    importlib.import_module(name)\nimport hwlib\nprint(hwlib.__file__)"
     env = dict(os.environ, PYTHONPATH=str(edition), MPLBACKEND="Agg")
     result = subprocess.run([sys.executable, "-c", code, "hwlib", *modules], cwd=edition, env=env, capture_output=True, text=True)
@@ -195,7 +195,7 @@ def test_pyproject_runs_the_notebooks_lax_and_readme_has_the_student_note(editio
     assert not re.search(r"--nbval(?![-\w])", student)
     assert student.replace("--nbval-lax", "--nbval") == source
     readme = (edition / "README.md").read_text()
-    assert "**Student edition.**" in readme and "python -m hwlib.grade" in readme
+    assert "**Student edition.**" in readme and "python -m hwtools.grade" in readme
     assert "INSTRUCTOR ONLY" not in readme
 
 
@@ -280,7 +280,7 @@ def make_kit(root, module=MODULE, notebook_cells=NOTEBOOK_CELLS):
         "README.md": "# The kit\n\nIntro.\n<!-- BEGIN INSTRUCTOR ONLY -->\nsecret\n<!-- END INSTRUCTOR ONLY -->\nEnd.\n",
         "hwlib/__init__.py": "",
         "hwlib/mod.py": module,
-        "hwlib/release.py": "# the tool\n",
+        "instructor/release.py": "# the tool\n",
         "notebooks/nb.ipynb": _notebook(notebook_cells),
         "tests/test_mod.py": "def test_x():\n    pass\n",
         "tests/hidden/test_secret.py": "import pytest\npytestmark = pytest.mark.hidden\n",
@@ -416,7 +416,7 @@ def test_replacement_must_match_the_blocks(tmp_path):
 
 def test_command_line_refuses_to_overwrite_and_replaces_an_earlier_edition_with_force(tmp_path):
     source = make_kit(tmp_path / "src")
-    command = [sys.executable, "-m", "hwlib.release", "student"]
+    command = [sys.executable, "-m", "instructor.release", "student"]
     env = dict(os.environ, PYTHONPATH=str(REPO))
 
     def run(*args):

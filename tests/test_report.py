@@ -1,4 +1,4 @@
-"""``python -m hwlib.report OUT_DIR``: every file is written, and answers.md holds the library's numbers.
+"""``python -m hwtools.report OUT_DIR``: every file is written, and answers.md holds the library's numbers.
 
 The command runs once per test session (module fixture, about a minute: it executes both
 notebooks and redoes their computations); the tests then read what it wrote and compare its
@@ -28,7 +28,7 @@ def report_and_answers(tmp_path_factory):
     """Run the command as a student would, into a folder that does not exist yet; while it runs
     (in its own process and kernels), compute the answers here for the tests to compare with."""
     out_dir = tmp_path_factory.mktemp("report") / "homework1-report"
-    command = [sys.executable, "-m", "hwlib.report", str(out_dir)]
+    command = [sys.executable, "-m", "hwtools.report", str(out_dir)]
     with subprocess.Popen(
         command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path_factory.getbasetemp()
     ) as process:

@@ -1,11 +1,5 @@
-"""Every figure the notebooks show, one module per problem."""
+"""Every figure the notebooks show: one module per subject."""
 
-from hwlib.plots.cartpole import (
-    EpisodeView,
-    draw_cartpole,
-    figure_png,
-    plot_episode,
-    plot_learning_rate_sweep,
-    plot_reward_histogram,
-    plot_training_curve,
-)
+from hwlib.plots._figure import figure_png, new_figure
+from hwlib.plots.cartpole import EpisodeView, draw_cartpole, plot_episode
+from hwlib.plots.training import plot_learning_rate_sweep, plot_reward_histogram, plot_training_curve

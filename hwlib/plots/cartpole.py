@@ -1,4 +1,4 @@
-"""Figures of problem 1: the cart and pole, an episode over time, rewards and learning curves.
+"""Figures of problem 1's episodes: the cart and pole, and an episode over time.
 
 Every function returns a matplotlib Figure and never calls ``plt.show()``: a notebook shows
 the figure it gets back, a script saves it.
@@ -6,30 +6,15 @@ the figure it gets back, a script saves it.
 
 from __future__ import annotations
 
-import io
-
 import numpy as np
-from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Rectangle
 
 from hwlib.cartpole import MAX_EPISODE_REWARD, THETA_THRESHOLD_RADIANS, X_THRESHOLD
+from hwlib.plots._figure import figure_png, new_figure  # noqa: F401  (figure_png is re-exported)
 
 CART_WIDTH, CART_HEIGHT = 0.5, 0.3
 POLE_LENGTH = 1.0  # gymnasium's pole is 2 x 0.5 long
 TRACK_LIMIT = X_THRESHOLD + 0.6
-
-
-def new_figure(width=6.4, height=4.0, dpi=100):
-    """A figure that needs no display and no pyplot state."""
-    return Figure(figsize=(width, height), dpi=dpi, layout="constrained")
-
-
-def figure_png(figure):
-    """The figure rendered to PNG bytes."""
-    buffer = io.BytesIO()
-    figure.savefig(buffer, format="png")
-    return buffer.getvalue()
-
 
 class CartPoleDrawing:
     """The cart and pole drawn on an axes; ``show(state)`` moves them, cheaply, to a new state."""
@@ -112,50 +97,3 @@ class EpisodeView:
 def plot_episode(episode, step=None):
     """A figure of ``episode``: position and angle over time, and the cart at ``step``."""
     return EpisodeView(dpi=100).show(episode, step)
-
-
-def plot_reward_histogram(rewards):
-    """Histogram of episode rewards, the maximum marked."""
-    rewards = np.asarray(rewards, dtype=float)
-    figure = new_figure()
-    ax = figure.add_subplot()
-    ax.hist(rewards, bins=np.linspace(0, MAX_EPISODE_REWARD, 51), color="tab:blue", edgecolor="white")
-    ax.axvline(MAX_EPISODE_REWARD, color="tab:red", ls="--", label=f"max reward {MAX_EPISODE_REWARD}")
-    ax.set_xlabel("episode reward")
-    ax.set_ylabel("number of policies")
-    ax.set_title(f"Rewards of {len(rewards)} random linear policies")
-    ax.legend()
-    return figure
-
-
-def plot_training_curve(rewards, learning_rate=None):
-    """Reward after each training iteration (iteration 0 is before any update), the maximum marked."""
-    rewards = np.asarray(rewards, dtype=float)
-    figure = new_figure()
-    ax = figure.add_subplot()
-    ax.plot(np.arange(len(rewards)), rewards, marker="o", label="mean reward")
-    ax.axhline(MAX_EPISODE_REWARD, color="tab:red", ls="--", label=f"max reward {MAX_EPISODE_REWARD}")
-    ax.set_xlabel("training iteration")
-    ax.set_ylabel("reward")
-    ax.set_ylim(0, MAX_EPISODE_REWARD * 1.08)
-    title = "Training curve" if learning_rate is None else f"Training curve, learning rate {learning_rate:g}"
-    ax.set_title(title)
-    ax.legend(loc="lower right")
-    return figure
-
-
-def plot_learning_rate_sweep(sweep, chosen_learning_rate=None):
-    """Fraction of seeds converging within the deadline, per learning rate (an ``hwlib.policy_search.SweepResult``),
-    with ``chosen_learning_rate`` marked if given."""
-    figure = new_figure()
-    ax = figure.add_subplot()
-    ax.semilogx(sweep.learning_rates, sweep.converged_fraction, marker="o")
-    if chosen_learning_rate is not None:
-        ax.axvline(chosen_learning_rate, color="tab:green", ls="--", label=f"chosen: {chosen_learning_rate:g}")
-        ax.legend(loc="lower left")
-    ax.set_ylim(-0.03, 1.03)
-    ax.set_xlabel("learning rate")
-    ax.set_ylabel(f"fraction of seeds converged by iteration {sweep.deadline}")
-    ax.set_title(f"Learning-rate sweep, {len(sweep.seeds)} seeds per rate")
-    ax.grid(True, which="both", alpha=0.3)
-    return figure

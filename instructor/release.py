@@ -1,6 +1,6 @@
 """Build the student edition of the kit from the instructor's kit (the one source of truth).
 
-    python -m hwlib.release student OUT_DIR [--source KIT_DIR] [--force] [--keep TODO ...]
+    python -m instructor.release student OUT_DIR [--source KIT_DIR] [--force] [--keep TODO ...]
 
 Solution code is fenced, in ``hwlib`` and in the notebooks' code cells, by comment lines
 
@@ -47,11 +47,11 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
-from hwlib.grade import TODO_BY_ID
+from hwtools.grade import TODO_BY_ID
 
 # Left out of the student edition: path prefixes relative to the kit (folders end with "/").
 INSTRUCTOR_ONLY = (
-    "hwlib/release.py",
+    "instructor/release.py",
     "tests/test_release.py",
     "tests/test_grading.py",
     "tests/hidden/",
@@ -90,7 +90,7 @@ STUDENT_NOTE = """\
 > **Student edition.** The code of the handout's TODOs is left for you to write: each one is a
 > `raise NotImplementedError("TODO 1.2.1: ...")` in `hwlib/`, or a `# YOUR CODE HERE` cell or
 > YOUR ANSWER HERE text in the notebooks. Until you fill them in, the tests of those TODOs
-> fail. `.venv/bin/python -m hwlib.grade` runs the tests and prints your automatic points per
+> fail. `.venv/bin/python -m hwtools.grade` runs the tests and prints your automatic points per
 > TODO (the report items are graded by hand). The notebooks are stored without outputs, so
 > `pytest` runs them with `--nbval-lax`: every cell must run without error, but outputs are not
 > compared.
@@ -253,7 +253,7 @@ def _hint(block, table, path):
     hint = block.hint or table.get(block.todo) or HINTS.get(block.todo)
     if not hint:
         raise ReleaseError(f"{path}:{block.begin + 1}: no hint for TODO {block.todo}: add a '### HINT: ...' line "
-                           "after the BEGIN line or an entry in hwlib/release.py's hint tables")
+                           "after the BEGIN line or an entry in instructor/release.py's hint tables")
     return hint
 
 
@@ -513,7 +513,7 @@ def build_student_edition(source, out_dir, keep=frozenset(), replace=None, force
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m hwlib.release", description="Build an edition of the kit.")
+    parser = argparse.ArgumentParser(prog="python -m instructor.release", description="Build an edition of the kit.")
     commands = parser.add_subparsers(dest="edition", required=True)
     student = commands.add_parser("student", help="the student edition: solutions replaced by stubs, no outputs, no instructor files")
     student.add_argument("out_dir", help="folder to write the student edition into (new or empty)")

@@ -1,6 +1,6 @@
 """The autograder: run a kit's tests and give points per handout TODO.
 
-    python -m hwlib.grade [KIT_DIR] [--tests TESTS_DIR] [--json FILE] [--timeout SECONDS]
+    python -m hwtools.grade [KIT_DIR] [--tests TESTS_DIR] [--json FILE] [--timeout SECONDS]
                           [--todo ID ...] [--jobs N] [--python PYTHON]
 
 Every test that decides a TODO's points carries ``@pytest.mark.todo("1.2.1")``. A TODO's
@@ -17,10 +17,10 @@ subprocess, and the grader starts it again without the tests already decided. Ei
 other tests, and the other TODOs, are still graded.
 
 Instructors grade a submission against their own tests, hidden ones included, with
-``python -m hwlib.grade SUBMISSION_DIR --tests INSTRUCTOR_KIT/tests``.
+``python -m hwtools.grade SUBMISSION_DIR --tests INSTRUCTOR_KIT/tests``.
 
 This module uses only the standard library at import time, so it also runs as a plain script
-(``python hwlib/grade.py``) should a broken ``hwlib`` stop ``python -m hwlib.grade``.
+(``python hwtools/grade.py``) should a broken ``hwlib`` stop ``python -m hwtools.grade``.
 """
 
 from __future__ import annotations
@@ -678,7 +678,7 @@ def _first_line(longrepr):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(
-        prog="python -m hwlib.grade",
+        prog="python -m hwtools.grade",
         description="Run the kit's tests and print the points per handout TODO.",
     )
     parser.add_argument("kit_dir", nargs="?", default=None,

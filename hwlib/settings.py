@@ -1,0 +1,48 @@
+"""Every setting of the homework, in one place: the notebooks, the report and the tests read them here.
+
+| setting                      | value               | where it is used                                        |
+|------------------------------|---------------------|---------------------------------------------------------|
+| ``HAND_TUNING_SEEDS``        | 0-4                 | 1.1.2: the start states each tried parameter vector plays |
+| ``NUM_RANDOM_POLICIES``      | 1000                | 1.1.3: how many random policies are sampled             |
+| ``RANDOM_POLICY_SEED``       | 0                   | 1.1.3: seed of their parameters and start states        |
+| ``FD_STEP``                  | 0.5                 | 1.3: the finite-difference step h for every coordinate  |
+| ``NUM_ROLLOUTS``             | 20                  | 1.3.1: episodes per evaluation of g(theta)              |
+| ``NUM_TRAINING_ITERATIONS``  | 20                  | 1.3.2: gradient-ascent updates per training run         |
+| ``TRAINING_SEED``            | 0                   | 1.3.2: seed of the notebook's training run              |
+| ``CONVERGENCE_DEADLINE``     | 7                   | 1.3.3: the handout's "converge within 7 iterations"     |
+| ``LEARNING_RATE``            | TODO 1.3.3          | 1.3.3: the learning rate you chose                      |
+| ``SWEEP_LEARNING_RATES``     | 8 rates, 1e-4..1e-2 | 1.3.3: the learning-rate sweep                          |
+| ``SWEEP_NUM_SEEDS``          | 20                  | 1.3.3: training runs per rate in the sweep              |
+| ``P2_LEARNING_RATE``         | 0.1                 | 2.3.2: the logistic-regression learning rate            |
+| ``P2_NUM_ITERATIONS``        | 100                 | 2.3.2: outer iterations of the one-vs-rest fit          |
+| ``TEST_FRACTION``            | 0.3                 | 2.3.2: share of the cuts kept for the test set          |
+| ``SPLIT_SEED``               | 0                   | 2.3.2: seed of the train/test shuffle                   |
+| ``TARGET_ACCURACY``          | 0.99                | 2.3.2: "training accuracy above 99% ..."                |
+| ``TARGET_ITERATIONS``        | 70                  | 2.3.2: "... in 70 iterations or less"                   |
+"""
+
+import numpy as np
+
+# Problem 1
+HAND_TUNING_SEEDS = tuple(range(5))
+NUM_RANDOM_POLICIES = 1000
+RANDOM_POLICY_SEED = 0
+FD_STEP = 0.5
+NUM_ROLLOUTS = 20
+NUM_TRAINING_ITERATIONS = 20
+TRAINING_SEED = 0
+CONVERGENCE_DEADLINE = 7
+### BEGIN SOLUTION 1.3.3
+### HINT: the learning rate you chose: one with which training from zeros converges within 7 iterations (the sweep in the notebook helps)
+LEARNING_RATE = 0.0007
+### END SOLUTION 1.3.3
+SWEEP_LEARNING_RATES = tuple(float(rate) for rate in np.geomspace(1e-4, 1e-2, 8))
+SWEEP_NUM_SEEDS = 20
+
+# Problem 2
+P2_LEARNING_RATE = 0.1
+P2_NUM_ITERATIONS = 100
+TEST_FRACTION = 0.3
+SPLIT_SEED = 0
+TARGET_ACCURACY = 0.99
+TARGET_ITERATIONS = 70

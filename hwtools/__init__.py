@@ -1,0 +1,1 @@
+"""What students run but do not read: the grader and the report. Nothing here is imported by hwlib."""
