@@ -1,0 +1,27 @@
+"""Fixtures shared by the unit tests."""
+
+import numpy as np
+import pytest
+
+from hwlib.cartpole import run_episodes, sample_random_params
+
+BALANCING_SEEDS = tuple(range(5))
+
+
+def find_balancing_params(seeds=BALANCING_SEEDS, search_seed=0):
+    """A parameter vector that reaches 500 from every start in ``seeds``, found by seeded random search.
+
+    The kit ships no such vector (finding one is handout 1.1.2), so the tests look for one, with the
+    kit's batch engine, which does not depend on any TODO.
+    """
+    candidates = sample_random_params(400, search_seed)
+    rewards = run_episodes(np.repeat(candidates, len(seeds), axis=0), np.tile(seeds, len(candidates)))
+    good = np.flatnonzero(np.all(rewards.reshape(len(candidates), len(seeds)) == 500, axis=1))
+    assert good.size, "no random parameter vector balanced the pole on every seed"
+    return tuple(float(value) for value in candidates[good[0]])
+
+
+@pytest.fixture(scope="session")
+def balancing_params():
+    """Four weights with which the linear policy balances for all 500 steps from seeds 0-4."""
+    return find_balancing_params()
