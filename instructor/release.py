@@ -12,9 +12,12 @@ Solution code is fenced, in ``hwlib`` and in the notebooks' code cells, by comme
 and, in Markdown cells, by ``<!-- BEGIN SOLUTION 2.1.1 -->`` ... ``<!-- END SOLUTION 2.1.1 -->``.
 In the student edition
 
-* a fenced block inside a function becomes ``raise NotImplementedError("TODO 1.2.1: <hint>")``
-  at the block's indentation; a fenced block at module level may only assign names, and each
-  name becomes ``NAME = None  # TODO 1.3.3: <hint>`` (so the module still imports);
+* a fenced block in library code becomes the student's starting point between kept markers
+  ``### BEGIN TODO 1.2.1`` / ``### END TODO 1.2.1`` (the grader takes the student's code from
+  between them): the hint as a ``# TODO`` comment, then the block's ``### STUB: code`` lines (or
+  ``pass``), so the skeleton around it (signature, givens, return) reads as the student's start;
+  a fenced block at module level may only assign names, and each name becomes
+  ``NAME = None  # TODO 1.3.3: <hint>`` (so the module still imports);
 * a fenced block in a notebook code cell becomes ``# TODO <id>: <hint>``, ``# YOUR CODE HERE``,
   ``raise NotImplementedError()``; in a Markdown cell it becomes ``YOUR ANSWER HERE``;
 * every notebook's outputs, execution counts, execution timings and stored widget state are cleared;
@@ -47,15 +50,18 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
-from hwtools.grade import TODO_BY_ID
+from hwtools.todos import TODO_BY_ID
 
 # Left out of the student edition: path prefixes relative to the kit (folders end with "/").
 INSTRUCTOR_ONLY = (
-    "instructor/release.py",
+    "instructor/",  # the release tool, hidden checks, wrong solutions: one folder
     "tests/test_release.py",
     "tests/test_grading.py",
+    "tests/test_student_edition.py",
     "tests/hidden/",
     "tests/wrong_solutions/",
+    "tests/natural_solutions/",  # working solutions of every TODO
+    "tests/cheats/",
     # Its per-sample reference loop spells out the gradient of 2.1.1 and the labels of 2.3.1.
     "benchmarks/bench_logreg.py",
     "benchmarks/requirements-bench.txt",
@@ -87,10 +93,12 @@ NOTEBOOK_HINTS = {
 }
 
 STUDENT_NOTE = """\
-> **Student edition.** The code of the handout's TODOs is left for you to write: each one is a
-> `raise NotImplementedError("TODO 1.2.1: ...")` in `hwlib/`, or a `# YOUR CODE HERE` cell or
-> YOUR ANSWER HERE text in the notebooks. Until you fill them in, the tests of those TODOs
-> fail. `.venv/bin/python -m hwtools.grade` runs the tests and prints your automatic points per
+> **Student edition.** The code of the handout's TODOs is yours to write. In `hwlib/` each one
+> sits between `### BEGIN TODO 1.2.1` and `### END TODO 1.2.1` inside the function the handout
+> names: write your code there and leave the two marker lines as they are (the grader reads your
+> code from between them). In the notebooks a TODO is a `# YOUR CODE HERE` cell or a
+> YOUR ANSWER HERE text. Until you fill them in, the tests of those TODOs fail.
+> `.venv/bin/python -m hwtools.grade` checks your functions and prints your automatic points per
 > TODO (the report items are graded by hand). The notebooks are stored without outputs, so
 > `pytest` runs them with `--nbval-lax`: every cell must run without error, but outputs are not
 > compared.
@@ -100,6 +108,7 @@ ID_PATTERN = r"[0-9]+(?:\.[0-9]+)+"
 CODE_MARKER = re.compile(r"^(?P<indent>[ \t]*)###[ \t]*(?P<kind>BEGIN|END)[ \t]+SOLUTION(?P<rest>.*?)[ \t]*$")
 MARKDOWN_MARKER = re.compile(r"^[ \t]*<!--[ \t]*(?P<kind>BEGIN|END)[ \t]+SOLUTION(?P<rest>.*?)[ \t]*-->[ \t]*$")
 HINT_LINE = re.compile(r"^[ \t]*###[ \t]*HINT:[ \t]*(?P<hint>.*?)[ \t]*$")
+STUB_LINE = re.compile(r"^[ \t]*###[ \t]*STUB:(?: (?P<code>.*?))?[ \t]*$")
 NEAR_MISS = re.compile(r"\b(BEGIN|END)[ \t_-]*SOLUTION\b")
 HIDDEN_MARK = re.compile(r"(?:pytest\.)?mark\.hidden\b(?:\(\))?")
 INSTRUCTOR_BLOCK = re.compile(r"^[ \t]*<!--[ \t]*(?P<kind>BEGIN|END)[ \t]+INSTRUCTOR ONLY[ \t]*-->[ \t]*$")
@@ -116,7 +125,8 @@ class Block:
     end: int  # index of the END line
     indent: str
     hint: str | None
-    body_start: int  # first line of the solution itself (after a HINT line)
+    body_start: int  # first line of the solution itself (after the HINT and STUB lines)
+    stub: tuple = ()  # the "### STUB: code" lines: the code the student starts from
 
 
 # --------------------------------------------------------------------------------------------
@@ -156,12 +166,15 @@ def find_blocks(lines, where, style="code"):
                 raise ReleaseError(f"{where(index)}: END SOLUTION {todo} is not indented like its BEGIN "
                                    f"({where(open_block[1])})")
             begin = open_block[1]
-            hint, body_start = None, begin + 1
+            hint, body_start, stub = None, begin + 1, []
             if style == "code" and body_start < index:
                 hint_match = HINT_LINE.match(lines[body_start])
                 if hint_match:
                     hint, body_start = hint_match["hint"], body_start + 1
-            blocks.append(Block(todo, begin, index, open_block[2], hint, body_start))
+                while body_start < index and STUB_LINE.match(lines[body_start]):
+                    stub.append(STUB_LINE.match(lines[body_start])["code"])
+                    body_start += 1
+            blocks.append(Block(todo, begin, index, open_block[2], hint, body_start, tuple(stub)))
             open_block = None
     if open_block is not None:
         raise ReleaseError(f"{where(open_block[1])}: BEGIN SOLUTION {open_block[0]} has no END SOLUTION {open_block[0]}")
@@ -204,7 +217,8 @@ def transform_python(text, path, keep=frozenset(), replace=None):
     _check_replacements(blocks, replace, path)
     if not blocks:
         return text
-    result = "\n".join(_replace_blocks(lines, blocks, keep, replace, lambda block: _python_stub(block, lines, path)))
+    result = "\n".join(_replace_blocks(lines, blocks, keep, replace, lambda block: _python_stub(block, lines, path),
+                                      wrap=_todo_markers))
     try:
         compile(result, str(path), "exec", dont_inherit=True)
     except SyntaxError as error:
@@ -214,11 +228,15 @@ def transform_python(text, path, keep=frozenset(), replace=None):
 
 
 def _python_stub(block, lines, path):
+    """The student's starting point for one block, between kept ``### BEGIN TODO`` / ``### END TODO``
+    markers (the grader finds the student's code between them): the hint as a comment, then the
+    block's STUB lines, or ``pass``. The skeleton around the block is the same in both editions."""
     body = lines[block.body_start:block.end]
     hint = _hint(block, HINTS, path)
-    message = f"TODO {block.todo}: {hint}"
+    begin, end = f"{block.indent}### BEGIN TODO {block.todo}", f"{block.indent}### END TODO {block.todo}"
     if block.indent:
-        return [f"{block.indent}raise NotImplementedError({_string_literal(message)})"]
+        stub = [f"{block.indent}{line}" if line else "" for line in block.stub] or [f"{block.indent}pass"]
+        return [begin, f"{block.indent}# TODO {block.todo}: {hint}", *stub, end]
     # Module level: a raise would stop the import, so every assigned name becomes None.
     try:
         tree = ast.parse("\n".join(body))
@@ -234,7 +252,11 @@ def _python_stub(block, lines, path):
         names.extend(target.id for target in targets)
     if not names:
         raise ReleaseError(f"{path}:{block.begin + 1}: module-level solution block {block.todo} assigns nothing")
-    return [f"{name} = None  # TODO {block.todo}: {hint}" for name in names]
+    return [begin, *(f"{name} = None  # TODO {block.todo}: {hint}" for name in names), end]
+
+
+def _todo_markers(block, body):
+    return [f"{block.indent}### BEGIN TODO {block.todo}", *body, f"{block.indent}### END TODO {block.todo}"]
 
 
 def _check_replacements(blocks, replace, path):
@@ -338,17 +360,19 @@ def transform_notebook(text, path, keep=frozenset(), replace=None):
     return json.dumps(notebook, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
 
 
-def _replace_blocks(lines, blocks, keep, replace, stub, seen=None):
+def _replace_blocks(lines, blocks, keep, replace, stub, seen=None, wrap=None):
     """``lines`` with each block stubbed, kept or replaced; ``seen`` counts each TODO's blocks
-    across calls (the cells of one notebook), so the n-th block gets the n-th replacement."""
+    across calls (the cells of one notebook), so the n-th block gets the n-th replacement.
+    ``wrap(block, body)`` frames a kept or replaced body (library code keeps its TODO markers)."""
     out, position, seen = [], 0, ({} if seen is None else seen)
+    wrap = wrap or (lambda block, body: body)
     for block in blocks:
         out.extend(lines[position:block.begin])
         if replace and block.todo in replace:
             number = seen[block.todo] = seen.get(block.todo, -1) + 1
-            out.extend(_indent(_as_list(replace[block.todo])[number], block.indent))
+            out.extend(wrap(block, _indent(_as_list(replace[block.todo])[number], block.indent)))
         elif block.todo in keep:
-            out.extend(lines[block.body_start:block.end])
+            out.extend(wrap(block, lines[block.body_start:block.end]))
         else:
             out.extend(stub(block))
         position = block.end + 1
@@ -358,6 +382,8 @@ def _replace_blocks(lines, blocks, keep, replace, stub, seen=None):
 
 def _notebook_code_stub(block, path):
     hint = _hint(block, NOTEBOOK_HINTS, path)
+    if block.stub:
+        return [f"{block.indent}# TODO {block.todo}: {hint}", *(f"{block.indent}{line}" for line in block.stub)]
     return [f"{block.indent}# TODO {block.todo}: {hint}", f"{block.indent}# YOUR CODE HERE", f"{block.indent}raise NotImplementedError()"]
 
 
