@@ -36,6 +36,15 @@ def check_params(params, name="params"):
     return check_finite(array, name)
 
 
+def check_observation(obs, name="obs"):
+    """One CartPole observation: 4 finite numbers, returned as a float64 array of shape (4,)."""
+    array = as_float_array(obs, name)
+    if array.shape != (NUM_PARAMS,):
+        raise ValueError(f"{name} must have shape (4,): cart position, cart velocity, pole angle, "
+                         f"pole angular velocity; got shape {array.shape}")
+    return check_finite(array, name)
+
+
 def check_params_batch(params, name="params"):
     """A batch of policy parameters: shape (K, 4) with K >= 1, all finite."""
     array = as_float_array(params, name)

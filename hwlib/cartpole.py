@@ -1,6 +1,6 @@
-"""CartPole with a linear policy: one episode at a time, or many at once.
+"""CartPole with a linear policy (handout 1.1).
 
-The environment is gymnasium's ``CartPole-v1``; the kit only talks to it through
+The environment is gymnasium's ``CartPole-v1``; the homework only talks to it through
 ``reset`` and ``step``.
 
 | what               | value                                                              |
@@ -11,13 +11,16 @@ The environment is gymnasium's ``CartPole-v1``; the kit only talks to it through
 | episode end        | pole angle beyond +-12 degrees (0.2095 rad) or cart beyond +-2.4: terminated; 500 steps: truncated |
 | start state        | each of the 4 components uniform in [-0.05, 0.05], drawn by ``reset(seed=...)`` |
 
-The policy of the handout's equation (1) is linear: ``action = 1 if params @ obs < 0 else 0``.
+The policy of the handout's equation (1) is linear: action 1 when ``params @ obs < 0``, else 0.
+Writing its ``__call__`` is TODO 1.1.1.
 
-``run_policy`` plays one episode through a single ``gym.make`` environment, the way the
-handout does. ``run_episodes`` plays a whole batch of episodes, one per row of parameters,
-through gymnasium's vectorised CartPole. Each episode of the batch starts from exactly the
-state that ``reset(seed=episode_seed)`` gives a single environment, so for the same seeds both
-functions return the same rewards: the batch is only faster, never different.
+``run_policy`` plays one episode through a single ``gym.make`` environment, the handout's loop,
+and it is all the homework's code ever calls. The kit makes that loop fast without the student
+noticing: inside ``eval_params`` (and the learning-rate sweep) ``run_policy`` hands its episode to
+a batcher (``hwlib/_batch.py``) that plays many episodes at once in gymnasium's vectorised
+CartPole (``run_episodes``). Each batched episode starts exactly where ``reset(seed=...)`` puts a
+single environment and every reward comes from ``step``, so the rewards are the same as one by
+one: the batch is only faster, never different.
 """
 
 from __future__ import annotations
@@ -27,7 +30,8 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from hwlib._checks import check_count, check_params, check_params_batch, check_seed, check_seeds
+from hwlib import _batch
+from hwlib._checks import check_count, check_observation, check_params, check_params_batch, check_seed, check_seeds
 
 ENV_ID = "CartPole-v1"
 NUM_OBSERVATIONS = 4
@@ -37,37 +41,26 @@ OBSERVATION_NAMES = ("cart position", "cart velocity", "pole angle", "pole angul
 X_THRESHOLD = 2.4
 THETA_THRESHOLD_RADIANS = 12 * 2 * np.pi / 360
 
-# Hand-picked parameters for the slider panel's preset buttons (see the notebook for why).
+# Two presets of the slider panel (1.1.2 asks students to find a balancing one themselves).
 ALWAYS_LEFT_PARAMS = (0.0, 0.0, 0.0, 0.0)
 ALWAYS_RIGHT_PARAMS = (0.0, -1.0, 0.0, 1.0)
-BALANCING_PARAMS = (-0.1, -0.5, -1.0, -0.5)
-
-
-def linear_policy_actions(params, observations):
-    """Actions of the linear policy, equation (1): 1 where ``params @ obs < 0``, else 0.
-
-    ``params`` and ``observations`` broadcast along their leading axes: (4,) with (4,) gives
-    one action, (K, 4) with (K, 4) gives K actions, each row of params acting on its own row
-    of observations. Returns an int64 array (a 0-d array for a single observation).
-    """
-    ### BEGIN SOLUTION 1.1.1
-    ### HINT: return equation (1) as int64 actions: 1 where the sum of params * observations over the last axis is < 0, else 0
-    scores = np.sum(np.asarray(params) * np.asarray(observations), axis=-1)
-    return (scores < 0).astype(np.int64)
-    ### END SOLUTION 1.1.1
 
 
 class CartPoleLinearPolicy:
-    """The linear policy of equation (1), called on one observation at a time."""
+    """The linear policy of equation (1), called on one observation at a time: ``policy(obs)``."""
 
     def __init__(self, params):
-        self.params = check_params(params, "params")
+        self.params = check_params(params, "params")  # float64, shape (4,)
 
     def __call__(self, obs):
-        obs = np.asarray(obs, dtype=np.float64)
-        if obs.shape != (NUM_OBSERVATIONS,):
-            raise ValueError(f"obs must have shape (4,), got shape {obs.shape}")
-        return int(linear_policy_actions(self.params, obs))
+        """The action for one observation ``obs`` (4 numbers): 1 (push right) or 0 (push left)."""
+        obs = check_observation(obs, "obs")  # float64, shape (4,)
+        action = 0
+        ### BEGIN SOLUTION 1.1.1
+        ### HINT: equation (1): action 1 when the dot product of self.params and obs is negative, else 0
+        action = int(np.dot(self.params, obs) < 0)
+        ### END SOLUTION 1.1.1
+        return action
 
     def __repr__(self):
         return f"CartPoleLinearPolicy(params={np.round(self.params, 4).tolist()})"
@@ -116,8 +109,22 @@ def play_episode(policy, seed=None, env=None) -> Episode:
 
 
 def run_policy(policy, seed=None, env=None):
-    """Total reward of one episode of ``policy``, played through ``env.step`` (the handout's loop)."""
+    """Total reward of one episode of ``policy`` from ``reset(seed=seed)``: the handout's loop.
+
+    Inside ``eval_params`` or the learning-rate sweep the episode may be played in a batch with
+    others (same reward, see the module docstring); pass ``env`` to force a plain loop in it.
+    """
+    if not callable(policy):
+        raise TypeError(f"policy must be callable as policy(obs) -> action, got {type(policy).__name__}")
+    if seed is not None:
+        seed = check_seed(seed, "seed")
+    batcher = _batch.current_batcher()
+    if batcher is not None and env is None and seed is not None and isinstance(policy, CartPoleLinearPolicy):
+        return batcher.reward(policy, seed)
     return play_episode(policy, seed=seed, env=env).total_reward
+
+
+_START_STATES = {}  # seed -> the start state reset(seed=seed) gives; seeds repeat a lot in training
 
 
 def start_states(seeds):
@@ -127,22 +134,36 @@ def start_states(seeds):
     how it draws start states. Returns a float64 array of shape (len(seeds), 4).
     """
     seeds = check_seeds(seeds, "seeds")
-    env = make_env()
-    states = np.empty((len(seeds), NUM_OBSERVATIONS))
-    for row, seed in enumerate(seeds):
-        env.reset(seed=int(seed))
-        states[row] = env.unwrapped.state
-    return states
+    missing = [int(seed) for seed in np.unique(seeds) if int(seed) not in _START_STATES]
+    if missing:
+        env = make_env()
+        for seed in missing:
+            env.reset(seed=seed)
+            _START_STATES[seed] = np.array(env.unwrapped.state, dtype=np.float64)
+        env.close()
+        if len(_START_STATES) > 1_000_000:
+            _START_STATES.clear()
+    return np.array([_START_STATES[int(seed)] for seed in seeds]).reshape(len(seeds), NUM_OBSERVATIONS)
+
+
+def batch_actions(params, observations):
+    """The batch engine's own copy of equation (1) for K episodes at once: row k of ``params``
+    (K, 4) acts on row k of ``observations`` (K, 4). Returns K int64 actions.
+
+    The batcher only uses it for a policy after checking it against that policy's own
+    ``__call__`` (``hwlib/_batch.py``); any other policy is played with ``policy(obs)`` step by step.
+    """
+    return (np.einsum("kj,kj->k", params, observations) < 0).astype(np.int64)
 
 
 def run_episodes(params, seeds, batched=True):
-    """Total reward of one episode per row of ``params``.
+    """Total reward of one episode of the linear policy per row of ``params``: the batch engine.
 
     Row k of ``params`` (shape (K, 4)) plays from the start state of ``reset(seed=seeds[k])``.
-    With ``batched=False`` the episodes are played one by one with ``run_policy``; by default
-    they all run at once in gymnasium's vectorised CartPole, whose start states are set once
-    after ``reset`` (from then on rewards come only from ``step``). Both give the same rewards.
-    Returns a float64 array of K rewards.
+    All K episodes run at once in gymnasium's vectorised CartPole, whose start states are set
+    once after ``reset`` (from then on rewards come only from ``step``). ``batched=False`` plays
+    them one by one with ``run_policy`` and ``CartPoleLinearPolicy`` instead. Both give the same
+    rewards when ``CartPoleLinearPolicy`` follows equation (1). Returns a float64 array of K rewards.
     """
     params = check_params_batch(params, "params")
     seeds = check_seeds(seeds, "seeds")
@@ -151,25 +172,46 @@ def run_episodes(params, seeds, batched=True):
     if not batched:
         env = make_env()
         return np.array([run_policy(CartPoleLinearPolicy(p), seed=int(s), env=env) for p, s in zip(params, seeds)])
+    return _play_batch(params, seeds)
+
+
+def _play_batch(params, seeds):
     num_episodes = len(params)
-    env = gym.make_vec(ENV_ID, num_envs=num_episodes, vectorization_mode="vector_entry_point")
-    env.reset(seed=int(seeds[0]))
-    # Batches often repeat seeds (common random numbers): read each start state only once.
-    unique_seeds, seed_rows = np.unique(seeds, return_inverse=True)
-    env.unwrapped.state = start_states(unique_seeds)[seed_rows].T.copy()
+    env = _vector_env(num_episodes, int(seeds[0]))
+    env.unwrapped.state = start_states(seeds).T.copy()
     observations = env.unwrapped.state.T.astype(np.float32)
 
     total_rewards = np.zeros(num_episodes)
+    rows = np.arange(num_episodes)  # the episode each env of the vector env plays
+    row_params, row_rewards = params, np.zeros(num_episodes)
     running = np.ones(num_episodes, dtype=bool)
     while running.any():
-        actions = linear_policy_actions(params, observations)
+        if 2 * running.sum() <= len(running) and len(running) >= 64:
+            # Most episodes have ended: go on with a smaller vector env that carries on exactly
+            # where the running ones are (their states and step counts), so fewer envs are stepped.
+            total_rewards[rows] = row_rewards
+            keep = np.flatnonzero(running)
+            smaller = _vector_env(len(keep), int(seeds[0]))
+            smaller.unwrapped.state = env.unwrapped.state[:, keep].copy()
+            smaller.unwrapped.steps = env.unwrapped.steps[keep].copy()
+            env.close()
+            env, rows, observations, running = smaller, rows[keep], observations[keep], running[keep]
+            row_params, row_rewards = params[rows], row_rewards[keep]
+        actions = batch_actions(row_params, observations)
         observations, rewards, terminated, truncated, _ = env.step(actions)
         # Under NEXT_STEP autoreset an env that just ended is reset on the following step and
         # reports reward 0 then; the mask stops counting it right away all the same.
-        total_rewards += np.where(running, rewards, 0.0)
+        row_rewards += np.where(running, rewards, 0.0)
         running &= ~(terminated | truncated)
     env.close()
+    total_rewards[rows] = row_rewards
     return total_rewards
+
+
+def _vector_env(num_envs, seed):
+    env = gym.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode="vector_entry_point")
+    env.reset(seed=seed)
+    return env
 
 
 def sample_random_params(num_policies, seed, low=-1.0, high=1.0):
@@ -188,12 +230,15 @@ def episode_seeds(num_episodes, seed):
     return np.random.default_rng(seed).integers(0, SEED_BOUND, size=num_episodes)
 
 
-def random_policy_rewards(num_policies=1000, seed=0, batched=True):
-    """Rewards of ``num_policies`` random linear policies (entries uniform in [-1, 1]).
+def random_policy_rewards(num_policies=1000, seed=0):
+    """Handout 1.1.3: rewards of ``num_policies`` random linear policies (entries uniform in [-1, 1]).
 
-    Policy i plays one episode from ``reset(seed=episode_seeds[i])``. ``batched=False`` plays
-    them one by one with ``run_policy``; both give the same rewards.
-    Returns ``(params, rewards)`` with shapes (num_policies, 4) and (num_policies,).
+    Policy i is a ``CartPoleLinearPolicy`` (your 1.1.1) and plays one episode with ``run_policy``
+    from ``reset(seed=episode_seeds[i])``. Returns ``(params, rewards)``, shapes (num_policies, 4)
+    and (num_policies,).
     """
     params = sample_random_params(num_policies, seed)
-    return params, run_episodes(params, episode_seeds(num_policies, seed + 1), batched=batched)
+    seeds = episode_seeds(num_policies, seed + 1)
+    env = make_env()
+    rewards = np.array([run_policy(CartPoleLinearPolicy(p), seed=int(s), env=env) for p, s in zip(params, seeds)])
+    return params, rewards
