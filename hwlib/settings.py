@@ -34,7 +34,7 @@ TRAINING_SEED = 0
 CONVERGENCE_DEADLINE = 7
 ### BEGIN SOLUTION 1.3.3
 ### HINT: the learning rate you chose: one with which training from zeros converges within 7 iterations (the sweep in the notebook helps)
-LEARNING_RATE = 0.0007
+LEARNING_RATE = 0.001
 ### END SOLUTION 1.3.3
 SWEEP_LEARNING_RATES = tuple(float(rate) for rate in np.geomspace(1e-4, 1e-2, 8))
 SWEEP_NUM_SEEDS = 20
