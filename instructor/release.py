@@ -19,7 +19,8 @@ In the student edition
   a fenced block at module level may only assign names, and each name becomes
   ``NAME = None  # TODO 1.3.3: <hint>`` (so the module still imports);
 * a fenced block in a notebook code cell becomes ``# TODO <id>: <hint>``, ``# YOUR CODE HERE``,
-  ``raise NotImplementedError()``; in a Markdown cell it becomes ``YOUR ANSWER HERE``;
+  ``raise NotImplementedError()`` (or its ``### STUB:`` lines) between the same kept markers; in a
+  Markdown cell it becomes ``YOUR ANSWER HERE``;
 * every notebook's outputs, execution counts, execution timings and stored widget state are cleared;
 * instructor-only files (``INSTRUCTOR_ONLY``: this tool, tests/hidden/, the tests of this tool
   and of the grader's proof, the wrong-solution fixtures, the logistic-regression benchmark whose
@@ -67,6 +68,9 @@ INSTRUCTOR_ONLY = (
     "benchmarks/requirements-bench.txt",
 )
 
+# Only the homework holds solution blocks; tooling elsewhere (the grader) may talk about markers freely.
+HOMEWORK_FOLDERS = ("hwlib/", "notebooks/")
+
 # Never part of a kit, whatever git says: at any depth, and (build output) at the top.
 SKIPPED_PARTS = {".git", ".venv", "venv", "__pycache__", ".pytest_cache", ".ipynb_checkpoints"}
 SKIPPED_TOP = {"build", "dist", "test-artifacts"}
@@ -74,22 +78,20 @@ SKIPPED_SUFFIXES = (".pyc", ".egg-info")
 
 # One-line hints per TODO, used where a block has no "### HINT:" line of its own.
 HINTS = {
-    "1.1.1": "return equation (1) as int64 actions: 1 where params @ obs < 0, else 0",
-    "1.2.1": "central differences, equation (3)",
-    "1.3.1": "the mean reward of R episodes for each row of params",
-    "1.3.2": "gradient ascent, equation (4)",
+    "1.1.1": "equation (1): action 1 when the dot product of the parameters and the observation is negative, else 0",
+    "1.2.1": "central differences, equation (3), one coordinate at a time",
+    "1.3.1": "the mean total reward of num_rollouts episodes",
+    "1.3.2": "one gradient-ascent step, equation (4), and the reward after it",
     "1.3.3": "a learning rate with which training converges within 7 iterations",
     "2.1.1": "the gradient of equation (7) that you derived",
     "2.2.1": "the sigmoid of equation (5), elementwise",
     "2.2.2": "the probability of the positive class for each row of X, with the constant 1 feature appended",
     "2.2.3": "one gradient ascent step, equation (8), with the gradient you derived in 2.1.1",
-    "2.3.1": "train classifier c on labels made one-vs-rest (1 for class c, 0 otherwise) for one step",
+    "2.3.1": "for each class: one-vs-rest labels (1 for class c, 0 otherwise) and one step of classifier c",
 }
 NOTEBOOK_HINTS = {
-    "1.1.2": "try several parameter vectors (always left, always right, balancing) and print what each does",
-    "1.1.3": "sample 1000 random policies with random_policy_rewards; define random_rewards and fraction_at_max",
-    "1.3.3": "set learning_rate to the rate you chose (and DEFAULT_LEARNING_RATE in hwlib/policy_search.py)",
-    "2.3.2": "print the train accuracy along the way, the final train and test accuracy and the first iteration above 99%",
+    "1.1.2": "a few parameter vectors you tried with the sliders, each with a name",
+    "2.3.2": "train the one-vs-rest classifier with the settings and compute the accuracies the report needs",
 }
 
 STUDENT_NOTE = """\
@@ -382,9 +384,8 @@ def _replace_blocks(lines, blocks, keep, replace, stub, seen=None, wrap=None):
 
 def _notebook_code_stub(block, path):
     hint = _hint(block, NOTEBOOK_HINTS, path)
-    if block.stub:
-        return [f"{block.indent}# TODO {block.todo}: {hint}", *(f"{block.indent}{line}" for line in block.stub)]
-    return [f"{block.indent}# TODO {block.todo}: {hint}", f"{block.indent}# YOUR CODE HERE", f"{block.indent}raise NotImplementedError()"]
+    body = [f"{block.indent}{line}" for line in block.stub] or [f"{block.indent}# YOUR CODE HERE", f"{block.indent}raise NotImplementedError()"]
+    return _todo_markers(block, [f"{block.indent}# TODO {block.todo}: {hint}", *body])
 
 
 def _notebook_file_line(raw_lines, cell, line_text):
@@ -496,11 +497,10 @@ def student_files(source, keep=frozenset(), replace=None):
         data = path.read_bytes()
         executable = bool(path.stat().st_mode & 0o111)
         file_replace = {todo: code for (todo, file), code in replace.items() if file == name}
-        if name.endswith(".py"):
-            text = data.decode("utf-8")
-            if name.startswith("tests/"):
-                text = drop_hidden_tests(text, name)
-            data = transform_python(text, name, keep, file_replace).encode("utf-8")
+        if name.endswith(".py") and name.startswith(HOMEWORK_FOLDERS):
+            data = transform_python(data.decode("utf-8"), name, keep, file_replace).encode("utf-8")
+        elif name.endswith(".py") and name.startswith("tests/"):
+            data = drop_hidden_tests(data.decode("utf-8"), name).encode("utf-8")
         elif name.endswith(".ipynb"):
             data = transform_notebook(data.decode("utf-8"), name, keep, file_replace).encode("utf-8")
         elif name == "pyproject.toml":

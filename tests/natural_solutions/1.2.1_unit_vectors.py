@@ -1,0 +1,5 @@
+n = len(x)
+v = np.eye(n)
+forward = np.array([f(x + h[i] * v[i]) for i in range(n)])
+backward = np.array([f(x - h[i] * v[i]) for i in range(n)])
+gradient = (forward - backward) / (2 * h)
