@@ -1,0 +1,337 @@
+"""The reward landscape: g(θ) on a 2-D slice of parameter space, and a widget to explore it.
+
+A slice lets two coordinates of θ vary over a square grid while the other two stay at the
+values of a given θ. Every cell of the grid is scored by the mean total reward of the same few
+episodes (the same start states for every cell, drawn from one seed), so neighbouring cells
+differ only because their policies act differently, never because their episodes started
+elsewhere. All cells are played in one batch of gymnasium's vectorised CartPole
+(``hwlib.cartpole.run_episodes``); ``batched=False`` plays them one by one instead, with the
+same rewards.
+
+| setting           | default      | meaning                                           |
+|-------------------|--------------|---------------------------------------------------|
+| ``GRID_SIZE``     | 41           | grid points per axis (41 x 41 cells)              |
+| ``VALUE_RANGE``   | (-2.0, 2.0)  | both varying coordinates run over this interval   |
+| ``NUM_EPISODES``  | 5            | episodes per cell (the same start states in every cell) |
+| ``SEED``          | 0            | master seed of those start states                 |
+| ``DEFAULT_AXES``  | (2, 3)       | θ3 and θ4 (pole angle, pole angular velocity) vary |
+
+Axes are 0-based indices into θ (0 is θ1, the weight on the cart position).
+
+``LandscapeExplorer`` is the notebook's widget: two dropdowns choose the axes, ``set_params``
+moves the slice to another θ. Its drawing is done by ``render_landscape``, a plain function,
+so the widget logic is tested without a browser.
+"""
+
+from __future__ import annotations
+
+import html
+import numbers
+import threading
+from dataclasses import dataclass
+
+import ipywidgets as widgets
+import numpy as np
+
+from hwlib._checks import as_float_array, check_count, check_finite, check_params, check_positive_number, check_seed
+from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, OBSERVATION_NAMES, episode_seeds, run_episodes
+
+GRID_SIZE = 41
+VALUE_RANGE = (-2.0, 2.0)
+NUM_EPISODES = 5
+SEED = 0
+DEFAULT_AXES = (2, 3)
+
+AXIS_NAMES = tuple(f"θ{index + 1}" for index in range(NUM_OBSERVATIONS))
+AXIS_LABELS = tuple(f"{symbol} · {name}" for symbol, name in zip(AXIS_NAMES, OBSERVATION_NAMES))
+
+
+@dataclass(frozen=True)
+class RewardSlice:
+    """g(θ) on one slice: ``mean_rewards[j, i]`` is the mean reward with coordinate ``axes[0]``
+    at ``values[i]`` (horizontal) and coordinate ``axes[1]`` at ``values[j]`` (vertical), the
+    other two coordinates held at those of ``theta``; every cell played from ``seeds``."""
+
+    theta: np.ndarray  # (4,) the point the slice passes through
+    axes: tuple  # (horizontal, vertical) coordinate indices, 0-based
+    values: np.ndarray  # (grid_size,) grid of both varying coordinates
+    mean_rewards: np.ndarray  # (grid_size, grid_size)
+    seeds: np.ndarray  # (num_episodes,) start-state seeds shared by every cell
+
+    @property
+    def held_axes(self):
+        """The two coordinates held fixed, in increasing order."""
+        return tuple(index for index in range(NUM_OBSERVATIONS) if index not in self.axes)
+
+    @property
+    def num_episodes(self):
+        return len(self.seeds)
+
+    def cell_params(self):
+        """The parameters of every cell, shape (grid_size**2, 4), row by row (vertical value j, then horizontal i)."""
+        return slice_params(self.theta, self.axes, self.values)
+
+
+def check_axes(axes, name="axes"):
+    """Two different coordinate indices in 0..3, returned as a tuple of ints."""
+    try:
+        pair = tuple(axes)
+    except TypeError:
+        pair = None
+    if (
+        pair is None
+        or len(pair) != 2
+        or any(isinstance(a, bool) or not isinstance(a, numbers.Integral) or not 0 <= a < NUM_OBSERVATIONS for a in pair)
+        or pair[0] == pair[1]
+    ):
+        raise ValueError(
+            f"{name} must be two different coordinate indices in 0..3 (0 is θ1 ... 3 is θ4), "
+            f"horizontal then vertical, got {axes!r}"
+        )
+    return int(pair[0]), int(pair[1])
+
+
+def check_value_range(value_range, name="value_range"):
+    """Two finite numbers (low, high) with low < high, returned as floats."""
+    array = as_float_array(value_range, name)
+    if array.shape != (2,) or not np.all(np.isfinite(array)) or not array[0] < array[1]:
+        raise ValueError(f"{name} must be two finite numbers (low, high) with low < high, got {value_range!r}")
+    return float(array[0]), float(array[1])
+
+
+def check_grid_size(grid_size, name="grid_size"):
+    """An integer >= 2 (a grid needs both ends)."""
+    if isinstance(grid_size, bool) or not isinstance(grid_size, numbers.Integral) or grid_size < 2:
+        raise ValueError(f"{name} must be an integer >= 2 (grid points per axis), got {grid_size!r}")
+    return int(grid_size)
+
+
+def check_path(path, name="path"):
+    """A training path: shape (T + 1, 4), finite; returned as a float64 array."""
+    array = as_float_array(path, name)
+    if array.ndim != 2 or array.shape[1] != NUM_OBSERVATIONS or array.shape[0] == 0:
+        raise ValueError(
+            f"{name} must have shape (T + 1, 4): the parameters before training and after each update, "
+            f"got shape {array.shape}"
+        )
+    return check_finite(array, name)
+
+
+def slice_params(theta, axes, values):
+    """Parameters of every cell of a slice, shape (len(values)**2, 4), row by row: row ``j * n + i``
+    is ``theta`` with coordinate ``axes[0]`` set to ``values[i]`` and ``axes[1]`` to ``values[j]``."""
+    theta = check_params(theta, "theta")
+    horizontal, vertical = check_axes(axes)
+    values = np.asarray(values, dtype=np.float64)
+    grid_x, grid_y = np.meshgrid(values, values)  # grid_x[j, i] = values[i], grid_y[j, i] = values[j]
+    params = np.tile(theta, (values.size**2, 1))
+    params[:, horizontal] = grid_x.ravel()
+    params[:, vertical] = grid_y.ravel()
+    return params
+
+
+def reward_slice(
+    theta,
+    axes=DEFAULT_AXES,
+    grid_size=GRID_SIZE,
+    value_range=VALUE_RANGE,
+    num_episodes=NUM_EPISODES,
+    seed=SEED,
+    batched=True,
+):
+    """The slice of g(θ) through ``theta`` in which coordinates ``axes`` (horizontal, vertical) vary.
+
+    Both vary over ``grid_size`` evenly spaced values in ``value_range``; the other two stay at
+    ``theta``'s. Each cell is the mean total reward of ``num_episodes`` episodes from the start
+    states of ``hwlib.cartpole.episode_seeds(num_episodes, seed)``, the same for every cell.
+    Deterministic: the same arguments give the same slice. Returns a ``RewardSlice``.
+    """
+    theta = check_params(theta, "theta").copy()  # the slice keeps its own θ
+    axes = check_axes(axes)
+    grid_size = check_grid_size(grid_size)
+    low, high = check_value_range(value_range)
+    num_episodes = check_count(num_episodes, "num_episodes")
+    seeds = episode_seeds(num_episodes, check_seed(seed, "seed"))
+    if not isinstance(batched, bool):
+        raise TypeError(f"batched must be True or False, got {batched!r}")
+
+    values = np.linspace(low, high, grid_size)
+    params = slice_params(theta, axes, values)
+    rewards = run_episodes(np.repeat(params, num_episodes, axis=0), np.tile(seeds, len(params)), batched=batched)
+    mean_rewards = rewards.reshape(grid_size, grid_size, num_episodes).mean(axis=2)
+    return RewardSlice(theta, axes, values, mean_rewards, seeds)
+
+
+# --- the explorer widget ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LandscapeFrame:
+    """What the explorer shows for one request: the slice, its picture and the line under it."""
+
+    landscape: RewardSlice
+    png: bytes
+    caption: str
+
+
+def landscape_caption(landscape):
+    """The explorer's line under the picture, e.g.
+    'θ3 across, θ4 up; 41 × 41 cells × 5 episodes each; 19% of the cells score 500 on every episode'."""
+    horizontal, vertical = landscape.axes
+    n = len(landscape.values)
+    share = np.mean(landscape.mean_rewards == MAX_EPISODE_REWARD)
+    return (
+        f"{AXIS_NAMES[horizontal]} across, {AXIS_NAMES[vertical]} up; {n} × {n} cells × "
+        f"{landscape.num_episodes} episodes each; {share:.0%} of the cells score {MAX_EPISODE_REWARD} on every episode"
+    )
+
+
+def render_landscape(
+    theta,
+    axes=DEFAULT_AXES,
+    path=None,
+    fd_step=None,
+    figure=None,
+    grid_size=GRID_SIZE,
+    value_range=VALUE_RANGE,
+    num_episodes=NUM_EPISODES,
+    seed=SEED,
+):
+    """The explorer's callback: compute the slice through ``theta`` and draw it.
+
+    ``path`` (shape (T + 1, 4)) is drawn projected onto the slice, ``fd_step`` marks the
+    finite-difference stencil around θ (see ``plot_reward_landscape``); ``figure`` is the figure
+    to redraw (a new one if None); the rest goes to ``reward_slice``. Returns a ``LandscapeFrame``.
+    """
+    from hwlib.plots.landscape import figure_png, plot_reward_landscape  # (hwlib.plots.landscape imports this module)
+
+    landscape = reward_slice(theta, axes, grid_size, value_range, num_episodes, seed)
+    figure = plot_reward_landscape(landscape, path=path, fd_step=fd_step, figure=figure)
+    return LandscapeFrame(landscape, figure_png(figure), landscape_caption(landscape))
+
+
+class LandscapeExplorer:
+    """The ipywidgets view of the landscape. Display ``explorer.widget`` in a notebook.
+
+    Two dropdowns choose the horizontal and vertical coordinates (choosing the one the other
+    dropdown shows swaps them); ``set_params(theta)`` moves the slice to another θ (the slider
+    panel's send button calls it). Redraws never overlap: while one runs, a new request only
+    replaces the one waiting, and the running redraw picks up the newest when it finishes, so
+    the last request is always the one left on show. ``path``, ``fd_step`` and the slice
+    options are those of ``render_landscape``.
+    """
+
+    def __init__(
+        self,
+        theta,
+        axes=DEFAULT_AXES,
+        path=None,
+        fd_step=None,
+        grid_size=GRID_SIZE,
+        value_range=VALUE_RANGE,
+        num_episodes=NUM_EPISODES,
+        seed=SEED,
+    ):
+        from hwlib.plots.landscape import new_landscape_figure
+
+        # Everything is checked here, at the door, so that nothing fails later inside a widget callback.
+        self._theta = check_params(theta, "theta").copy()
+        axes = check_axes(axes)
+        self.path = None if path is None else check_path(path)
+        self.fd_step = None if fd_step is None else check_positive_number(fd_step, "fd_step")
+        self.slice_options = {
+            "grid_size": check_grid_size(grid_size),
+            "value_range": check_value_range(value_range),
+            "num_episodes": check_count(num_episodes, "num_episodes"),
+            "seed": check_seed(seed, "seed"),
+        }
+        self.figure = new_landscape_figure()
+        self.frame = None  # the LandscapeFrame on show
+
+        self._lock = threading.Lock()  # guards _theta, _pending and _drawing
+        self._pending = None  # the newest (theta, axes) request not yet drawn
+        self._drawing = False
+
+        options = [(label, index) for index, label in enumerate(AXIS_LABELS)]
+        self.horizontal = widgets.Dropdown(options=options, value=axes[0], description="across")
+        self.vertical = widgets.Dropdown(options=options, value=axes[1], description="up")
+        self.image = widgets.Image(format="png", layout=widgets.Layout(align_self="flex-start"))  # its own size, not stretched
+        self.image.add_class("hwlib-landscape")
+        self.caption = widgets.HTML()
+        self.caption.add_class("hwlib-landscape-caption")
+        self.horizontal.observe(self._on_axis_change, names="value")
+        self.vertical.observe(self._on_axis_change, names="value")
+        self.widget = widgets.VBox([widgets.HBox([self.horizontal, self.vertical]), self.image, self.caption])
+        self.redraw()
+
+    @property
+    def theta(self):
+        """The θ the slice passes through (a copy)."""
+        return self._theta.copy()
+
+    @property
+    def axes(self):
+        """The (horizontal, vertical) coordinates the dropdowns show."""
+        return self.horizontal.value, self.vertical.value
+
+    def set_params(self, theta):
+        """Move the slice to ``theta`` (4 finite numbers) and redraw."""
+        theta = check_params(theta, "theta").copy()  # the caller may change its array later
+        with self._lock:
+            self._theta = theta
+        self.redraw()
+
+    def set_axes(self, axes):
+        """Choose the (horizontal, vertical) coordinates and redraw once."""
+        self._set_dropdowns(*check_axes(axes))
+        self.redraw()
+
+    def redraw(self):
+        """Draw the slice for the current θ and axes; if a redraw is already running, leave this as
+        the request it draws next (replacing any older one still waiting) and return at once."""
+        with self._lock:
+            self._pending = (self._theta, self.axes)
+            if self._drawing:
+                return
+            self._drawing = True
+        try:
+            while True:
+                with self._lock:
+                    request, self._pending = self._pending, None
+                    if request is None:
+                        self._drawing = False
+                        return
+                if self.frame is not None:
+                    self.caption.value = "drawing the slice…"
+                theta, axes = request
+                frame = render_landscape(theta, axes, self.path, self.fd_step, self.figure, **self.slice_options)
+                with self._lock:
+                    superseded = self._pending is not None
+                if not superseded:  # else the newer request's picture follows right away
+                    self.frame = frame
+                    self.image.value = frame.png
+                    self.caption.value = frame.caption
+        except Exception as error:
+            with self._lock:
+                self._drawing = False
+            self.caption.value = f"could not draw the slice: {html.escape(str(error))}"
+            raise
+
+    def _set_dropdowns(self, horizontal, vertical):
+        for dropdown in (self.horizontal, self.vertical):
+            dropdown.unobserve(self._on_axis_change, names="value")
+        try:
+            self.horizontal.value, self.vertical.value = horizontal, vertical
+        finally:
+            for dropdown in (self.horizontal, self.vertical):
+                dropdown.observe(self._on_axis_change, names="value")
+
+    def _on_axis_change(self, change):
+        horizontal, vertical = self.axes
+        if horizontal == vertical:  # the other dropdown showed this coordinate: swap the two
+            if change["owner"] is self.horizontal:
+                vertical = change["old"]
+            else:
+                horizontal = change["old"]
+            self._set_dropdowns(horizontal, vertical)
+        self.redraw()

@@ -1,0 +1,88 @@
+"""The reward landscape figure: one slice of g(θ) as a heatmap, θ and a training path on it.
+
+The function returns a matplotlib Figure and never calls ``plt.show()``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hwlib._checks import check_positive_number
+from hwlib.cartpole import MAX_EPISODE_REWARD
+from hwlib.landscape import AXIS_LABELS, AXIS_NAMES, RewardSlice, check_path
+from hwlib.plots._figure import figure_png, new_figure  # noqa: F401  (figure_png is re-exported)
+
+COLOUR_MAP = "viridis"
+PATH_COLOUR = "tab:red"
+MERGE_FRACTION = 0.025  # consecutive path points closer than this share of the plotted range (about one cell) share one label
+
+
+def new_landscape_figure():
+    """An empty figure of the size the landscape is drawn at."""
+    return new_figure(6.4, 6.0, dpi=80)
+
+
+def plot_reward_landscape(landscape, path=None, fd_step=None, figure=None):
+    """The slice ``landscape`` (an ``hwlib.landscape.RewardSlice``) as a heatmap with a 0-500 colour bar.
+
+    The slice's θ is marked with a star. ``path`` (shape (T + 1, 4), e.g. the parameters before
+    training and after each update) is drawn projected onto the slice: one dot per iteration,
+    numbered from 0; consecutive iterations that land on the same spot share one label ("9–20").
+    ``fd_step`` (a number > 0) marks the points θ ± h along both axes, the finite-difference
+    stencil. ``figure`` is cleared and reused if given.
+    """
+    if not isinstance(landscape, RewardSlice):
+        raise TypeError(f"landscape must be an hwlib.landscape.RewardSlice (from reward_slice), got {type(landscape).__name__}")
+    path = None if path is None else check_path(path)
+    fd_step = None if fd_step is None else check_positive_number(fd_step, "fd_step")
+    figure = new_landscape_figure() if figure is None else figure
+    figure.clear()
+    ax = figure.add_subplot()
+
+    horizontal, vertical = landscape.axes
+    values = landscape.values
+    half_cell = (values[1] - values[0]) / 2
+    low, high = values[0] - half_cell, values[-1] + half_cell
+    image = ax.imshow(
+        landscape.mean_rewards, origin="lower", extent=(low, high, low, high), vmin=0, vmax=MAX_EPISODE_REWARD,
+        cmap=COLOUR_MAP, interpolation="nearest",
+    )
+    colour_bar = figure.colorbar(image, ax=ax, shrink=0.85)
+    colour_bar.set_label(f"mean reward of {landscape.num_episodes} episodes (the same starts in every cell)")
+    ax.set_xlim(low, high)
+    ax.set_ylim(low, high)
+    ax.set_xlabel(AXIS_LABELS[horizontal])
+    ax.set_ylabel(AXIS_LABELS[vertical])
+    held = ", ".join(f"{AXIS_NAMES[index]} = {landscape.theta[index]:.2f}" for index in landscape.held_axes)
+    ax.set_title(f"Reward landscape g(θ), held: {held}")
+
+    theta_x, theta_y = landscape.theta[horizontal], landscape.theta[vertical]
+    if fd_step is not None:
+        stencil_x = theta_x + np.array([-fd_step, fd_step, 0, 0])
+        stencil_y = theta_y + np.array([0, 0, -fd_step, fd_step])
+        for x, y in zip(stencil_x, stencil_y):
+            ax.plot([theta_x, x], [theta_y, y], color="white", lw=0.8, alpha=0.8)
+        ax.plot(stencil_x, stencil_y, ls="none", marker="o", ms=5, mfc="none", mec="white",
+                label=f"θ ± h along each axis (h = {fd_step:g})")
+    if path is not None:
+        _draw_path(ax, path[:, horizontal], path[:, vertical], span=high - low)
+    outside = not (low <= theta_x <= high and low <= theta_y <= high)
+    ax.plot(theta_x, theta_y, ls="none", marker="*", ms=16, mfc="white", mec="black",
+            label="θ (outside the plotted range)" if outside else f"θ = ({', '.join(f'{v:.2f}' for v in landscape.theta)})")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1, fontsize="small", frameon=False)
+    return figure
+
+
+def _draw_path(ax, xs, ys, span):
+    """The training path: a line through one dot per iteration, each run of (nearly) coinciding
+    consecutive dots labelled once with its first and last iteration."""
+    ax.plot(xs, ys, color=PATH_COLOUR, lw=1.5, marker="o", ms=5, mec="white", mew=0.8,
+            label=f"training path, iterations 0–{len(xs) - 1} (projected onto the slice)")
+    start = 0
+    for index in range(1, len(xs) + 1):
+        if index < len(xs) and np.hypot(xs[index] - xs[start], ys[index] - ys[start]) <= MERGE_FRACTION * span:
+            continue
+        label = str(start) if index - 1 == start else f"{start}–{index - 1}"
+        ax.annotate(label, (xs[start], ys[start]), xytext=(4, 4), textcoords="offset points", fontsize=8,
+                    color="black", bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
+        start = index
