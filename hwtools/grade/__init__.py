@@ -1,0 +1,48 @@
+"""The grader: points per handout TODO, from code that runs sandboxed and never decides its own points.
+
+    python -m hwtools.grade [SUBMISSION_DIR] [--reference KIT_DIR] [--json FILE] [--todo ID]
+
+One call per submission (what batch grading builds on)::
+
+    from hwtools.grade import grade_submission
+    result = grade_submission("submissions/alice", reference_dir="path/to/instructor/kit")
+
+or, for many submissions against one reference (its answers are computed once)::
+
+    grader = Grader(reference_dir)
+    results = [grader.grade(path) for path in paths]
+
+The result is a JSON-serialisable dict:
+
+* ``isolated`` (bool) and ``isolation`` (how, or why not); ``one_mistake_one_place`` (graded
+  against the reference: True; against an answer key: False);
+* ``total``: ``auto_earned``, ``auto_possible`` (39), ``manual_possible`` (21);
+* ``todos``: one entry per TODO with ``id``, ``title``, ``auto_earned``, ``auto_possible``,
+  ``manual_possible``, ``manual`` (what a person grades), ``status`` (graded, not graded, time
+  limit, crashed, graded by hand), ``checks`` (what was checked, in words, its points, passed,
+  ``failed_on`` visible/hidden), ``first_failure`` (for a visible input: the input, expected and
+  actual value; for a hidden one only the check), ``notes`` (what was seen: stopped runs,
+  warnings, code outside the blocks, suspicious calls);
+* ``notes``, ``seconds``.
+
+Modules: ``blocks`` (finding the TODO code, composite kits), ``sandbox`` (bubblewrap or a plain
+subprocess, limits), ``worker`` (runs in the sandbox), ``checks`` (what is checked and how),
+``grader`` (the trusted side), ``feedback`` (the text report). This package imports nothing from
+``hwlib`` and nothing heavier than numpy.
+"""
+
+from hwtools.grade.grader import Grader, GradingError, write_answer_key
+from hwtools.todos import AUTO_POINTS, MANUAL_POINTS, TODO_BY_ID, TODOS, Todo
+
+
+def grade_submission(submission_dir, reference_dir=None, *, todos=None, grader=None, **options):
+    """Grade the kit at ``submission_dir`` against ``reference_dir`` (the instructor's kit; None: the
+    answer key of a student edition). ``options`` go to ``Grader`` (python, isolation,
+    time_limit, memory_limit, jobs). Pass ``grader`` to reuse one (and its cached reference
+    answers) across submissions. Returns the result dict described in this module's docstring."""
+    grader = grader or Grader(reference_dir, **options)
+    return grader.grade(submission_dir, todos=todos)
+
+
+__all__ = ["AUTO_POINTS", "MANUAL_POINTS", "TODOS", "TODO_BY_ID", "Todo", "Grader", "GradingError",
+           "grade_submission", "write_answer_key"]

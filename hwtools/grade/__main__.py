@@ -1,0 +1,64 @@
+"""Command line: ``python -m hwtools.grade [SUBMISSION_DIR] [--reference KIT_DIR] [--json FILE] [--todo ID]``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from hwtools.grade.feedback import render
+from hwtools.grade.grader import ANSWER_KEY, KIT_ROOT, Grader, GradingError, has_solutions
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT
+from hwtools.todos import TODO_BY_ID
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        prog="python -m hwtools.grade",
+        description="Automatic points per handout TODO. The submission's code runs in a sandbox (bubblewrap) and "
+                    "never decides its own points: each TODO is checked with the submission's code for that TODO "
+                    "and the reference solution for the others.")
+    parser.add_argument("submission", nargs="?", default=str(KIT_ROOT),
+                        help="the kit to grade (a folder with hwlib/; default: this kit)")
+    parser.add_argument("--reference", metavar="KIT_DIR",
+                        help="the instructor's kit to grade against (default: this kit if it holds the solutions, "
+                             "else the student edition's answer key: visible checks only)")
+    parser.add_argument("--answer-key", metavar="FILE", help=f"grade against this answer key (default: {ANSWER_KEY.name})")
+    parser.add_argument("--json", metavar="FILE", help="also write the result as JSON to FILE")
+    parser.add_argument("--todo", action="append", metavar="ID", help="grade only this TODO (repeatable)")
+    parser.add_argument("--python", help="the Python that runs the homework's code (default: the reference kit's .venv)")
+    parser.add_argument("--isolation", choices=("auto", "bwrap", "none"), default="auto",
+                        help="auto: bubblewrap where it works, else a plain subprocess (the report then says "
+                             "NOT ISOLATED); bwrap: refuse to run without it; none: no sandbox")
+    parser.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
+                        help=f"wall-clock and CPU limit per TODO's run (default {DEFAULT_TIME_LIMIT:g})")
+    parser.add_argument("--memory-limit", type=int, default=DEFAULT_MEMORY_LIMIT // 2**20, metavar="MIB",
+                        help=f"address-space limit per run in MiB (default {DEFAULT_MEMORY_LIMIT // 2**20})")
+    parser.add_argument("--jobs", type=int, default=None, help="runs side by side (default: up to 4, one per CPU)")
+    parser.add_argument("--brief", action="store_true", help="only the table, without the checks of each TODO")
+    args = parser.parse_args(argv)
+    unknown = [todo for todo in args.todo or () if todo not in TODO_BY_ID]
+    if unknown:
+        parser.error(f"unknown TODO id(s): {', '.join(unknown)}; the handout's are {', '.join(TODO_BY_ID)}")
+    submission = Path(args.submission)
+    if not (submission / "hwlib").is_dir():
+        parser.error(f"{submission}: no hwlib/ folder; give the folder of a kit")
+    reference = args.reference
+    if reference is None and args.answer_key is None and has_solutions(KIT_ROOT):
+        reference = KIT_ROOT
+    try:
+        grader = Grader(reference, answer_key=args.answer_key, python=args.python, isolation=args.isolation,
+                        time_limit=args.time_limit, memory_limit=args.memory_limit * 2**20, jobs=args.jobs)
+        result = grader.grade(submission, todos=args.todo)
+    except GradingError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    sys.stdout.write(render(result, details=not args.brief))
+    if args.json:
+        Path(args.json).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

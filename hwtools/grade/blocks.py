@@ -1,0 +1,399 @@
+"""The TODO blocks: find them, read a submission's code safely, and build the kits the worker runs.
+
+A block is fenced by ``### BEGIN SOLUTION 1.2.1`` ... ``### END SOLUTION 1.2.1`` in the instructor's
+kit and by ``### BEGIN TODO 1.2.1`` ... ``### END TODO 1.2.1`` in the student edition; a submission
+may use either. Only the code between the markers is ever taken from a submission: everything
+around it (signatures, door checks, the ``return`` after the block) comes from the reference kit.
+
+Standard library only: the grader's trusted process imports this module, never ``hwlib``.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import io
+import os
+import re
+import shutil
+import stat
+import textwrap
+import tokenize
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+
+MARKER = re.compile(
+    r"^(?P<indent>[ \t]*)###[ \t]*(?P<kind>BEGIN|END)[ \t]+(?P<style>SOLUTION|TODO)[ \t]+(?P<id>[0-9]+(?:\.[0-9]+)+)[ \t]*$"
+)
+MAX_FILE_BYTES = 1_000_000  # a submitted source file larger than this is not read
+PACKAGE = "hwlib"
+
+
+class SubmissionError(Exception):
+    """A submission file that cannot be read (missing, a link, too large, not UTF-8 text)."""
+
+
+@dataclass(frozen=True)
+class Block:
+    todo: str
+    begin: int  # index of the BEGIN line
+    end: int  # index of the END line
+    indent: str
+    body: tuple  # the lines between the markers
+    style: str = "SOLUTION"  # SOLUTION (instructor's kit) or TODO (student edition)
+
+    @property
+    def module_level(self):
+        return self.indent == ""
+
+
+def find_blocks(text, where="<text>"):
+    """The fenced blocks of ``text``, in order. Unbalanced or nested markers raise SubmissionError."""
+    lines = text.split("\n")
+    blocks, open_block = [], None
+    for index, line in enumerate(lines):
+        match = MARKER.match(line)
+        if match is None:
+            continue
+        if match["kind"] == "BEGIN":
+            if open_block is not None:
+                raise SubmissionError(f"{where}:{index + 1}: BEGIN {match['id']} inside the open block {open_block[0]}")
+            open_block = (match["id"], index, match["indent"], match["style"])
+        else:
+            if open_block is None or open_block[0] != match["id"]:
+                raise SubmissionError(f"{where}:{index + 1}: END {match['id']} without its BEGIN")
+            todo, begin, indent, style = open_block
+            blocks.append(Block(todo, begin, index, indent, tuple(lines[begin + 1:index]), style))
+            open_block = None
+    if open_block is not None:
+        raise SubmissionError(f"{where}:{open_block[1] + 1}: BEGIN {open_block[0]} has no END")
+    return blocks
+
+
+# --------------------------------------------------------------------------------------------
+# Reading a submission without trusting it
+# --------------------------------------------------------------------------------------------
+
+
+def read_text(root, relative):
+    """The UTF-8 text of ``root/relative``, refusing links (of the file or any folder on the way),
+    anything but a regular file, and files over MAX_FILE_BYTES."""
+    root = Path(root)
+    path = root
+    for part in PurePosixPath(relative).parts:
+        if part in ("", ".", ".."):
+            raise SubmissionError(f"{relative}: not a plain relative path")
+        path = path / part
+        try:
+            info = os.lstat(path)
+        except FileNotFoundError:
+            raise SubmissionError(f"{relative}: missing") from None
+        if stat.S_ISLNK(info.st_mode):
+            raise SubmissionError(f"{relative}: {path.relative_to(root)} is a symbolic link; only plain files are read")
+    if not stat.S_ISREG(info.st_mode):
+        raise SubmissionError(f"{relative}: not a regular file")
+    if info.st_size > MAX_FILE_BYTES:
+        raise SubmissionError(f"{relative}: {info.st_size} bytes, more than the {MAX_FILE_BYTES} read")
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    with os.fdopen(fd, "rb") as handle:
+        data = handle.read(MAX_FILE_BYTES + 1)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise SubmissionError(f"{relative}: not UTF-8 text") from None
+
+
+@dataclass
+class Submission:
+    """The student's code per TODO (``bodies[todo]``: one tuple of lines per block) and what was
+    seen while reading it (``problems[todo]``: why a TODO's code could not be taken)."""
+
+    root: Path
+    bodies: dict = field(default_factory=dict)
+    problems: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+    texts: dict = field(default_factory=dict)  # relative path -> text, of the files read
+
+
+def read_submission(root, layout):
+    """Take each TODO's code from the files ``layout`` (a ``KitLayout`` of the reference) names."""
+    submission = Submission(Path(root))
+    for relative, ref_blocks in layout.blocks_by_file.items():
+        todos = [block.todo for block in ref_blocks]
+        try:
+            text = read_text(root, relative)
+            blocks = find_blocks(text, relative)
+        except SubmissionError as error:
+            for todo in todos:
+                submission.problems.setdefault(todo, str(error))
+            continue
+        submission.texts[relative] = text
+        for todo in dict.fromkeys(todos):
+            expected = sum(block.todo == todo for block in ref_blocks)
+            found = [block.body for block in blocks if block.todo == todo]
+            if len(found) != expected:
+                submission.problems[todo] = (f"{relative}: expected {expected} block(s) marked "
+                                             f"'### BEGIN TODO {todo}' ... '### END TODO {todo}', found {len(found)}")
+            else:
+                submission.bodies[todo] = tuple(found)
+        if layout.skeletons.get(relative) is not None and skeleton(text) != layout.skeletons[relative]:
+            submission.notes.append(f"{relative}: lines outside the TODO blocks differ from the kit's; they are "
+                                    "not used: grading puts your blocks into the kit's own file")
+    return submission
+
+
+# --------------------------------------------------------------------------------------------
+# The reference kit and the composite kits built from it
+# --------------------------------------------------------------------------------------------
+
+
+def skeleton(text):
+    """The lines outside the blocks (markers reduced to the TODO id), to compare two editions."""
+    lines = text.split("\n")
+    try:
+        blocks = find_blocks(text)
+    except SubmissionError:
+        return None
+    out, position = [], 0
+    for block in blocks:
+        out.extend(line.rstrip() for line in lines[position:block.begin])
+        out.append(f"<block {block.todo}>")
+        position = block.end + 1
+    out.extend(line.rstrip() for line in lines[position:])
+    while out and not out[-1]:
+        out.pop()
+    return tuple(out)
+
+
+@dataclass
+class KitLayout:
+    """A kit's ``hwlib`` package: every file's text and the blocks in each."""
+
+    root: Path
+    files: dict  # relative path ("hwlib/x.py") -> text
+    blocks_by_file: dict  # relative path -> [Block] (files with blocks only)
+    skeletons: dict  # relative path -> skeleton(text)
+
+    @property
+    def todos(self):
+        return sorted({block.todo for blocks in self.blocks_by_file.values() for block in blocks},
+                      key=lambda todo: tuple(int(part) for part in todo.split(".")))
+
+    def reference_bodies(self):
+        bodies = {}
+        for blocks in self.blocks_by_file.values():
+            for block in blocks:
+                bodies.setdefault(block.todo, []).append(block.body)
+        return {todo: tuple(found) for todo, found in bodies.items()}
+
+
+def load_layout(root):
+    """Read the ``hwlib`` package of the kit at ``root`` (sources only; caches and links skipped)."""
+    root = Path(root)
+    package = root / PACKAGE
+    if not package.is_dir():
+        raise SubmissionError(f"{root}: no {PACKAGE}/ folder")
+    files, blocks_by_file, skeletons = {}, {}, {}
+    for path in sorted(package.rglob("*.py")):
+        relative = path.relative_to(root).as_posix()
+        if "__pycache__" in relative or path.is_symlink():
+            continue
+        text = read_text(root, relative)
+        files[relative] = text
+        blocks = find_blocks(text, relative)
+        if blocks:
+            blocks_by_file[relative] = blocks
+            skeletons[relative] = skeleton(text)
+    return KitLayout(root, files, blocks_by_file, skeletons)
+
+
+def reindent(body, indent):
+    """``body`` (lines) moved to ``indent``: its common indentation removed, ``indent`` put in
+    front of every non-blank line. An empty body (or comments only) becomes ``pass`` in a function."""
+    text = textwrap.dedent("\n".join(line.expandtabs(4) if line.startswith("\t") else line for line in body))
+    lines = [(indent + line) if line.strip() else "" for line in text.split("\n")]
+    while lines and not lines[-1]:
+        lines.pop()
+    return lines
+
+
+def _has_code(lines):
+    try:
+        tokens = tokenize.generate_tokens(io.StringIO("\n".join(lines) + "\n").readline)
+        return any(token.type not in (tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT,
+                                      tokenize.DEDENT, tokenize.ENDMARKER) for token in tokens)
+    except (tokenize.TokenError, IndentationError, SyntaxError):
+        return True
+
+
+def check_body(body, module_level):
+    """None if ``body`` is a well-formed block on its own (balanced brackets and strings, valid
+    syntax), else the reason. A block must stand alone so that it cannot swallow the kit's code."""
+    lines = reindent(body, "" if module_level else "    ")
+    source = "\n".join(lines) if module_level else "def _block():\n" + "\n".join(lines + ["    pass"])
+    try:
+        compile(source, "<your block>", "exec", dont_inherit=True)
+    except SyntaxError as error:
+        line = (error.lineno or 1) - (0 if module_level else 1)
+        return f"line {max(line, 1)} of the block: {error.msg}"
+    return None
+
+
+def stub_lines(block, todo):
+    """What stands in for a block that a check does not run: a raise in a function, ``NAME = None``
+    for each name a module-level block assigns."""
+    if not block.module_level:
+        return [f'{block.indent}raise NotImplementedError("TODO {todo} is not part of this check")']
+    names = []
+    try:
+        tree = ast.parse("\n".join(reindent(block.body, "")))
+    except SyntaxError:
+        tree = ast.Module(body=[], type_ignores=[])
+    for node in tree.body:
+        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        names.extend(target.id for target in targets if isinstance(target, ast.Name))
+    return [f"{name} = None" for name in names] or ["pass"]
+
+
+def compose_file(text, blocks, choose):
+    """``text`` with every block replaced by ``choose(block, number)`` (lines; ``number`` counts the
+    blocks of that TODO in this file), markers dropped."""
+    lines = text.split("\n")
+    out, position, seen = [], 0, {}
+    for block in blocks:
+        number = seen[block.todo] = seen.get(block.todo, -1) + 1
+        out.extend(lines[position:block.begin])
+        out.extend(choose(block, number))
+        position = block.end + 1
+    out.extend(lines[position:])
+    return "\n".join(out)
+
+
+def composite_files(layout, student_bodies, reference_todos, only=None):
+    """{relative path: text} of a kit built from ``layout`` (the reference): blocks of the TODOs in
+    ``student_bodies`` get that code, blocks in ``reference_todos`` keep the reference's, every
+    other block is stubbed. ``only``: the relative paths to include (with an empty package
+    ``__init__`` where the reference's is left out)."""
+    files = {}
+    for relative, text in layout.files.items():
+        if only is not None and relative not in only:
+            continue
+        blocks = layout.blocks_by_file.get(relative, [])
+
+        def choose(block, number):
+            if block.todo in student_bodies:
+                lines = reindent(student_bodies[block.todo][number], block.indent)
+                if not _has_code(lines):
+                    lines.append(f"{block.indent}pass")
+                return lines
+            if block.todo in reference_todos:
+                return list(block.body)
+            return stub_lines(block, block.todo)
+
+        files[relative] = compose_file(text, blocks, choose) if blocks else text
+    if only is not None:
+        for relative in list(files):
+            for parent in PurePosixPath(relative).parents:
+                init = (parent / "__init__.py").as_posix()
+                if parent.parts and init not in files:
+                    files[init] = ""
+    return files
+
+
+def files_digest(files):
+    digest = hashlib.sha256()
+    for relative in sorted(files):
+        digest.update(relative.encode() + b"\0" + files[relative].encode() + b"\0")
+    return digest.hexdigest()
+
+
+def write_files(files, out_dir):
+    """Write {relative path: text} under ``out_dir`` (read-only files)."""
+    out_dir = Path(out_dir)
+    for relative, text in sorted(files.items()):
+        target = out_dir / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(text, encoding="utf-8")
+        target.chmod(0o444)
+    return out_dir
+
+
+def remove_tree(path):
+    def make_writable(function, failed_path, _info):
+        os.chmod(failed_path, 0o700)
+        function(failed_path)
+
+    shutil.rmtree(path, onerror=make_writable)
+
+
+# --------------------------------------------------------------------------------------------
+# What a block reaches for: named in the feedback, never a reason for points either way
+# --------------------------------------------------------------------------------------------
+
+_SUSPECT_MODULES = {
+    "_pytest": "pytest's internals", "pytest": "pytest", "unittest": "unittest", "socket": "the network (socket)",
+    "urllib": "the network (urllib)", "http": "the network (http)", "requests": "the network (requests)",
+    "subprocess": "other programs (subprocess)", "multiprocessing": "other processes (multiprocessing)",
+    "ctypes": "ctypes", "builtins": "builtins", "importlib": "importlib", "inspect": "inspect", "gc": "gc",
+    "signal": "signals", "resource": "resource limits", "shutil": "files (shutil)", "glob": "files (glob)",
+    "pathlib": "files (pathlib)", "pickle": "pickle", "json": "json files", "threading": "threads",
+}
+_SUSPECT_CALLS = {
+    "sys.exit": "sys.exit", "os._exit": "os._exit", "exit": "exit()", "quit": "quit()", "os.fork": "os.fork",
+    "os.kill": "os.kill", "os.system": "os.system", "os.popen": "os.popen", "os.setsid": "os.setsid",
+    "os.remove": "deleting files", "os.unlink": "deleting files", "os.listdir": "listing folders",
+    "os.walk": "listing folders", "os.environ": "the environment", "open": "open() on files",
+    "exec": "exec", "eval": "eval", "compile": "compile", "__import__": "__import__", "globals": "globals()",
+    "setattr": "setattr", "np.testing": "numpy.testing", "numpy.testing": "numpy.testing",
+    "math.isclose": "math.isclose", "sys.modules": "sys.modules", "sys.settrace": "sys.settrace",
+}
+_SUSPECT_METHODS = {"__eq__", "__ne__", "__bool__", "__array__", "__float__", "__getattr__", "__del__"}
+
+
+def scan_body(body, module_level=False):
+    """Sorted short names of what the block uses that a homework solution does not need:
+    ending the process, other processes, the network, files, patching modules, objects with a
+    custom ``__eq__``... The feedback names them; they change no points."""
+    try:
+        tree = ast.parse("\n".join(reindent(body, "")) if module_level else
+                         "def _block():\n" + "\n".join(reindent(body, "    ") + ["    pass"]))
+    except SyntaxError:
+        return []
+    seen = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            names = [node.module or ""] + [f"{node.module}.{alias.name}" for alias in node.names]
+        else:
+            names = []
+        for name in names:
+            top = name.split(".")[0]
+            if top in _SUSPECT_MODULES:
+                seen.add(_SUSPECT_MODULES[top])
+            if name in _SUSPECT_CALLS:
+                seen.add(_SUSPECT_CALLS[name])
+        if isinstance(node, (ast.Attribute, ast.Name)):
+            dotted = _dotted(node)
+            if dotted in _SUSPECT_CALLS:
+                seen.add(_SUSPECT_CALLS[dotted])
+        if isinstance(node, ast.FunctionDef) and node.name in _SUSPECT_METHODS:
+            seen.add(f"a custom {node.name}")
+        if isinstance(node, (ast.Assign, ast.AugAssign)):
+            for target in (node.targets if isinstance(node, ast.Assign) else [node.target]):
+                dotted = _dotted(target) if isinstance(target, ast.Attribute) else None
+                if dotted and "." in dotted and dotted.split(".")[0] in {"np", "numpy", "math", "sys", "os", "builtins",
+                                                                        "hwlib", "_pytest", "pytest"}:
+                    seen.add(f"replacing {dotted}")
+    return sorted(seen)
+
+
+def _dotted(node):
+    parts = []
+    while isinstance(node, ast.Attribute):
+        parts.append(node.attr)
+        node = node.value
+    if isinstance(node, ast.Name):
+        parts.append(node.id)
+        return ".".join(reversed(parts))
+    return None

@@ -1,0 +1,553 @@
+"""What the grader checks for each TODO, on which inputs, and how an answer is judged.
+
+Each TODO's points ride on a few *behaviours* (``Behaviour``): one thing the handout asks,
+described in words, worth some points, tested on visible inputs (made here, with a public seed;
+students see them and the answer key holds their expected values) and on hidden inputs (made by
+``instructor/hidden_checks`` with the instructor's own seed). A behaviour earns its points only
+when every one of its inputs passes, visible and hidden, so an answer written for the visible
+inputs earns nothing.
+
+Two kinds of judging:
+
+* **exact**, where the handout fixes the computation (eq. (1), eq. (3), the sigmoid, eq. (8), ...):
+  the student's values must equal the reference solution's on the same input, within float
+  tolerance;
+* **by property**, where it does not (which start states ``eval_params`` plays, how the training
+  loop is written): the property the handout asks for is checked, with the reference re-scoring
+  what the student's code produced (``SERVICES``).
+
+Checks that any code passes (the door checks, shapes made by given code) carry no points.
+Standard library and numpy only; the worker module is imported for its pure helper functions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hwtools.grade.worker import known_function, quadratic_objective
+
+PUBLIC_SEED = 20_240_131  # the visible inputs' seed: students may know it
+
+# What each TODO's check runs besides the student's block: those blocks keep the reference
+# solution in the kit the worker gets; every other block is a stub.
+NEEDS = {
+    "1.1.1": (),
+    "1.2.1": (),
+    "1.3.1": ("1.1.1",),
+    "1.3.2": ("1.1.1", "1.2.1", "1.3.1"),
+    "1.3.3": (),  # only hwlib/settings.py is run with the student's block; training uses the reference
+    "2.1.1": ("2.2.1",),
+    "2.2.1": (),
+    "2.2.2": ("2.2.1",),
+    "2.2.3": ("2.1.1", "2.2.1"),
+    "2.3.1": ("2.1.1", "2.2.1", "2.2.2", "2.2.3"),
+}
+SETTINGS_ONLY = {"1.3.3": ("hwlib/settings.py",)}  # TODOs whose kit holds only these files
+
+
+@dataclass(frozen=True)
+class Verdict:
+    passed: bool
+    expected: str = ""
+    actual: str = ""
+
+
+@dataclass(frozen=True)
+class Behaviour:
+    """One graded behaviour of a TODO."""
+
+    todo: str
+    key: str
+    points: float
+    description: str
+    probe: str
+    make: object  # make(rng, variant) -> the arguments of one case
+    judge: object  # judge(args, result, expected_values, services) -> Verdict
+    visible_count: int = 2
+    services: object = None  # services(args, result) -> [(probe, args)]: reference runs the judge needs
+    exact: bool = False  # judged against the reference's values on the same input
+
+    @property
+    def id(self):
+        return f"{self.todo}/{self.key}"
+
+    def visible_cases(self):
+        rng = np.random.default_rng([PUBLIC_SEED, _number(self.id)])
+        return [self.make(rng, variant) for variant in range(self.visible_count)]
+
+
+def _number(text):
+    return int.from_bytes(text.encode(), "little") % (2**63)
+
+
+# --------------------------------------------------------------------------------------------
+# Showing values
+# --------------------------------------------------------------------------------------------
+
+
+def show(value, limit=12):
+    """A short text of ``value`` for feedback: at most ``limit`` numbers, 6 significant digits."""
+    if isinstance(value, dict):
+        return ", ".join(f"{key}={show(item, limit)}" for key, item in value.items())
+    if isinstance(value, (list, tuple)) and not all(isinstance(item, (int, float, bool)) for item in value):
+        return "[" + ", ".join(show(item, limit) for item in value) + "]"
+    if isinstance(value, str):
+        return value
+    array = np.asarray(value)
+    if array.dtype.kind not in "biuf":
+        return f"<{type(value).__name__}>"
+    if array.ndim == 0:
+        return np.format_float_positional(array.item(), precision=6, unique=True, trim="-") \
+            if array.dtype.kind == "f" else str(array.item())
+    text = np.array2string(array.ravel()[:limit], precision=6, separator=", ", max_line_width=10_000)
+    more = f" ... ({array.size} values)" if array.size > limit else ""
+    shape = f" shape {array.shape}" if array.ndim > 1 else ""
+    return text + more + shape
+
+
+def _close(actual, expected, rtol, atol):
+    actual, expected = np.asarray(actual, dtype=np.float64), np.asarray(expected, dtype=np.float64)
+    return actual.shape == expected.shape and bool(np.all(np.isfinite(actual))) and \
+        bool(np.allclose(actual, expected, rtol=rtol, atol=atol))
+
+
+def exact(name, rtol=1e-9, atol=1e-12):
+    """A judge: value ``name`` equals the reference's (same shape, within tolerance, finite)."""
+
+    def judge(args, result, expected, services):
+        if result["status"] != "ok":
+            return Verdict(False, show(expected[name]), result["error"])
+        actual = result["values"][name]
+        return Verdict(_close(actual, expected[name], rtol, atol), show(expected[name]), show(actual))
+
+    return judge
+
+
+# --------------------------------------------------------------------------------------------
+# 1.1.1 the linear policy
+# --------------------------------------------------------------------------------------------
+
+
+def make_policy_states(rng, variant):
+    count = 30
+    params = rng.normal(size=(count, 4))
+    obs = rng.normal(size=(count, 4)) * np.array([1.0, 1.0, 0.1, 1.0])
+    return {"params": params, "obs": obs}
+
+
+def make_policy_ties(rng, variant):
+    """Integer parameters and states, so that every score is exact: four ties at 0, two of each sign."""
+    rows, want = [], {0: 4, 1: 2, -1: 2}
+    while any(want.values()):
+        params = rng.integers(-3, 4, size=4).astype(np.float64)
+        obs = rng.integers(-3, 4, size=4).astype(np.float64)
+        sign = int(np.sign(params @ obs))
+        if want[sign]:
+            want[sign] -= 1
+            rows.append((params, obs))
+    order = rng.permutation(len(rows))
+    return {"params": np.array([rows[i][0] for i in order]), "obs": np.array([rows[i][1] for i in order])}
+
+
+# --------------------------------------------------------------------------------------------
+# 1.2.1 central differences
+# --------------------------------------------------------------------------------------------
+
+
+def _signed(rng, size):
+    return rng.uniform(0.5, 2.0, size=size) * rng.choice([-1.0, 1.0], size=size)
+
+
+def make_fd_uniform(rng, variant):
+    if variant == 2:  # a single number x
+        return {"f": {"kind": "cubic", "a": _signed(rng, 1), "c": float(rng.normal())},
+                "x": float(rng.uniform(-2, 2)), "h": float(rng.uniform(0.1, 0.6)), "x_scalar": True, "h_scalar": True}
+    size = int(rng.integers(3, 7))
+    step = float(rng.uniform(0.1, 0.6))
+    return {"f": {"kind": "cubic", "a": _signed(rng, size), "c": float(rng.normal())}, "x": rng.uniform(-2, 2, size),
+            "h": step if variant == 0 else np.full(size, step), "h_scalar": variant == 0}
+
+
+def make_fd_steps(rng, variant):
+    size = int(rng.integers(4, 8))
+    return {"f": {"kind": "cubic", "a": _signed(rng, size), "c": 0.0}, "x": rng.uniform(-2, 2, size),
+            "h": rng.uniform(0.05, 0.8, size)}
+
+
+def make_fd_coupled(rng, variant):
+    size = int(rng.integers(3, 6))
+    matrix = rng.normal(size=(size, size))
+    return {"f": {"kind": "coupled", "a": _signed(rng, size), "b": rng.normal(size=size), "m": matrix},
+            "x": rng.uniform(-1.5, 1.5, size), "h": rng.uniform(0.1, 0.5, size)}
+
+
+# --------------------------------------------------------------------------------------------
+# 1.3.1 eval_params, judged by property and re-scored by the reference
+# --------------------------------------------------------------------------------------------
+
+
+def make_eval_case(rng, variant):
+    return {"params": rng.uniform(-1.0, 1.0, 4) * np.array([0.3, 1.0, 1.0, 1.0]),
+            "num_rollouts": int((3, 4, 1, 6)[variant % 4]), "seed": int(rng.integers(0, 5_000))}
+
+
+def _episodes_services(args, result):
+    if result["status"] != "ok":
+        return []
+    values = result["values"]
+    return [("episode_rewards", {"params": values["episode_params"], "seeds": values["episode_seeds"]})]
+
+
+def judge_eval_mean(args, result, expected, services):
+    want = f"the mean of {args['num_rollouts']} episode reward(s) of params {show(args['params'])}"
+    if result["status"] != "ok":
+        return Verdict(False, want, result["error"])
+    values = result["values"]
+    played = int(values["episodes"])
+    if played != args["num_rollouts"]:
+        return Verdict(False, want, f"{played} episode(s) played with run_policy, returned {show(values['value'])}")
+    if not np.array_equal(values["episode_params"], np.repeat(np.asarray(args["params"])[None, :], played, axis=0)):
+        return Verdict(False, want, f"episodes played with other parameters: {show(values['episode_params'])}")
+    rescored = services[0]["values"]["rewards"] if services and services[0]["status"] == "ok" else None
+    if rescored is None:
+        return Verdict(False, want, "the reference could not re-score the episodes")
+    mean = float(np.mean(rescored))
+    return Verdict(_close(values["value"], mean, 1e-9, 1e-9), f"{want}: {show(mean)}", show(values["value"]))
+
+
+def judge_eval_distinct(args, result, expected, services):
+    if result["status"] != "ok":
+        return Verdict(False, "episodes from different start states", result["error"])
+    seeds = result["values"]["episode_seeds"]
+    return Verdict(len(seeds) > 0 and len(set(seeds.tolist())) == len(seeds),
+                   f"{args['num_rollouts']} different seeds", f"seeds {show(seeds)}")
+
+
+def judge_eval_repeat(args, result, expected, services):
+    if result["status"] != "ok":
+        return Verdict(False, "the same number twice", result["error"])
+    values = result["values"]
+    seeded = bool(np.all(values["episode_seeded"])) and len(values["episode_seeded"]) > 0
+    same = _close(values["value_again"], values["value"], 0, 0)
+    actual = f"{show(values['value'])}, then {show(values['value_again'])}"
+    if not seeded:
+        actual += " (run_policy was called without a seed: a random start state each time)"
+    return Verdict(seeded and same, "the same number twice", actual)
+
+
+# --------------------------------------------------------------------------------------------
+# 1.3.2 the training loop: a known objective, and a real run re-scored
+# --------------------------------------------------------------------------------------------
+
+
+def make_known_training(rng, variant):
+    basis = rng.normal(size=(4, 4))
+    return {"objective": {"A": basis @ basis.T / 8.0 + 0.5 * np.eye(4), "m": rng.normal(size=4),
+                          "c": float(rng.uniform(100, 400))},
+            "iterations": int(3 + variant), "rollouts": 2, "learning_rate": float((0.05, 0.1, 0.08)[variant % 3]),
+            "fd_step": float((0.5, 0.25, 0.4)[variant % 3]), "seed": int(rng.integers(0, 100)),
+            "initial_params": rng.normal(size=4) * 0.5}
+
+
+def central_difference(g, theta, step):
+    eye = np.eye(len(theta))
+    return np.array([(g(theta + step * e) - g(theta - step * e)) / (2 * step) for e in eye])
+
+
+def _training_shape(args, values):
+    iterations = args["iterations"]
+    history, rewards = values["params_history"], values["rewards"]
+    if history.shape != (iterations + 1, 4) or rewards.shape != (iterations + 1,):
+        return f"params_history of shape {history.shape} and rewards of shape {rewards.shape}"
+    return None
+
+
+def judge_known_steps(args, result, expected, services):
+    want = "theta[t+1] = theta[t] + learning_rate * central-difference gradient of g at theta[t]"
+    if result["status"] != "ok":
+        return Verdict(False, want, result["error"])
+    values = result["values"]
+    wrong_shape = _training_shape(args, values)
+    if wrong_shape:
+        return Verdict(False, f"{args['iterations']} updates", wrong_shape)
+    g = quadratic_objective(args["objective"])
+    history = values["params_history"]
+    if not _close(history[0], args["initial_params"], 0, 0):
+        return Verdict(False, f"theta[0] = initial_params = {show(args['initial_params'])}", show(history[0]))
+    for t in range(args["iterations"]):
+        step = history[t] + args["learning_rate"] * central_difference(g, history[t], args["fd_step"])
+        if not _close(history[t + 1], step, 1e-9, 1e-9):
+            return Verdict(False, f"theta[{t + 1}] = {show(step)}", f"theta[{t + 1}] = {show(history[t + 1])}")
+    if not _close(values["final_params"], history[-1], 0, 0):
+        return Verdict(False, f"the returned policy has theta[{args['iterations']}]", show(values["final_params"]))
+    return Verdict(True)
+
+
+def judge_known_rewards(args, result, expected, services):
+    want = "rewards[t] = g(theta[t]) after every update"
+    if result["status"] != "ok":
+        return Verdict(False, want, result["error"])
+    values = result["values"]
+    wrong_shape = _training_shape(args, values)
+    if wrong_shape:
+        return Verdict(False, want, wrong_shape)
+    g = quadratic_objective(args["objective"])
+    wanted = np.array([g(theta) for theta in values["params_history"]])
+    return Verdict(_close(values["rewards"], wanted, 1e-9, 1e-9), show(wanted), show(values["rewards"]))
+
+
+def make_real_training(rng, variant):
+    return {"iterations": 2, "rollouts": 3, "learning_rate": float((0.002, 0.001)[variant % 2]),
+            "fd_step": 0.5, "seed": int(rng.integers(0, 1000)), "initial_params": rng.normal(size=4) * 0.05}
+
+
+def _recorded_reward_calls(args, values):
+    """For every update t >= 1, the recorded eval_params call at theta[t] with num_rollouts_per_eval
+    episodes whose value is rewards[t]; None where there is none."""
+    history, rewards = values["params_history"], values["rewards"]
+    found = []
+    for t in range(1, len(rewards)):
+        match = None
+        for index in range(len(values["call_values"])):
+            if values["call_rollouts"][index] == args["rollouts"] and np.array_equal(values["call_params"][index], history[t]) \
+                    and values["call_values"][index] == rewards[t]:
+                match = index
+                break
+        found.append(match)
+    return found
+
+
+def _real_services(args, result):
+    if result["status"] != "ok" or _training_shape(args, result["values"]):
+        return []
+    values = result["values"]
+    calls = [index for index in _recorded_reward_calls(args, values) if index is not None]
+    if not calls:
+        return []
+    return [("eval_many", {"params": values["call_params"][calls], "rollouts": values["call_rollouts"][calls],
+                           "seeds": values["call_seeds"][calls]})]
+
+
+def judge_real_rewards(args, result, expected, services):
+    want = f"rewards[t] = eval_params(theta[t], {args['rollouts']} rollouts) after every update"
+    if result["status"] != "ok":
+        return Verdict(False, want, result["error"])
+    values = result["values"]
+    wrong_shape = _training_shape(args, values)
+    if wrong_shape:
+        return Verdict(False, want, wrong_shape)
+    if not _close(values["final_params"], values["params_history"][-1], 0, 0):
+        return Verdict(False, "the returned policy has the last parameters", show(values["final_params"]))
+    calls = _recorded_reward_calls(args, values)
+    for t, index in enumerate(calls, start=1):
+        if index is None:
+            return Verdict(False, want, f"rewards[{t}] = {show(values['rewards'][t])} is no evaluation of theta[{t}] "
+                                        f"with {args['rollouts']} rollouts")
+    rescored = services[0]["values"]["values"] if services and services[0]["status"] == "ok" else None
+    if rescored is None or not _close(rescored, values["rewards"][1:], 0, 1e-9):
+        return Verdict(False, want, f"the reference's score of theta[1:] is {show(rescored)}, "
+                                    f"the run recorded {show(values['rewards'][1:])}")
+    return Verdict(True)
+
+
+# --------------------------------------------------------------------------------------------
+# 1.3.3 the learning rate: the notebook's run, with the reference's training code
+# --------------------------------------------------------------------------------------------
+
+
+def make_learning_rate(rng, variant):
+    return {"name": "LEARNING_RATE"}
+
+
+def _learning_rate_services(args, result):
+    if result["status"] != "ok":
+        return []
+    value = float(result["values"]["value"])
+    if not np.isfinite(value) or value <= 0:
+        return []
+    return [("train_notebook", {"learning_rate": value})]
+
+
+def converged_at(rewards, max_reward):
+    """The first t from which every reward is the maximum (t counts updates), or None."""
+    below = np.flatnonzero(np.asarray(rewards) < max_reward)
+    first = 0 if below.size == 0 else int(below[-1]) + 1
+    return first if first < len(rewards) else None
+
+
+def judge_learning_rate(args, result, expected, services):
+    want = "training converges within 7 iterations: reward 500 from then on"
+    if result["status"] != "ok":
+        return Verdict(False, want, result["error"])
+    value = float(result["values"]["value"])
+    if not np.isfinite(value) or value <= 0:
+        return Verdict(False, want, f"LEARNING_RATE = {show(value)} is not a number > 0")
+    if not services or services[0]["status"] != "ok":
+        return Verdict(False, want, f"the training run with LEARNING_RATE = {show(value)} failed: "
+                                    f"{services[0]['error'] if services else 'not run'}")
+    run = services[0]["values"]
+    deadline, top = int(run["deadline"]), float(run["max_reward"])
+    want = f"training converges within {deadline} iterations: reward {show(top)} from then on"
+    at = converged_at(run["rewards"], top)
+    actual = f"LEARNING_RATE = {show(value)}: rewards {show(run['rewards'], 25)}; " + \
+        (f"converged at iteration {at}" if at is not None else "never converged")
+    return Verdict(at is not None and at <= deadline, want, actual)
+
+
+# --------------------------------------------------------------------------------------------
+# Problem 2
+# --------------------------------------------------------------------------------------------
+
+
+def _two_class_data(rng, samples, features, scale=1.0):
+    X = rng.normal(size=(samples, features)) * scale
+    y = rng.integers(0, 2, size=samples)
+    return X, y
+
+
+def make_sigmoid_moderate(rng, variant):
+    shape = ((9,), (3, 4), (2, 3, 2), ())[variant % 4]
+    z = rng.uniform(-35, 35, size=shape)
+    if variant == 0:
+        z = np.concatenate([[0.0, 1.0, -1.0], z[3:]])
+    return {"z": np.asarray(z)}
+
+
+def make_sigmoid_tails(rng, variant):
+    if variant == 0:
+        return {"z": np.array([-1000.0, -745.0, -709.5, -100.0, -40.0, 40.0, 100.0, 709.5, 745.0, 1000.0])}
+    return {"z": rng.uniform(50, 1000, size=(2, 5)) * rng.choice([-1.0, 1.0], size=(2, 5))}
+
+
+def make_predict_prob(rng, variant, zero_bias=False):
+    features = int(rng.integers(3, 6))
+    X, _ = _two_class_data(rng, int(rng.integers(8, 15)), features)
+    weights = rng.normal(size=features + 1)
+    if zero_bias:
+        weights[-1] = 0.0
+    elif abs(weights[-1]) < 0.5:
+        weights[-1] = 0.5 + weights[-1]
+    return {"n_features": features, "weights": weights, "X": X}
+
+
+def make_step(rng, variant, start="zero", steps=1):
+    features = int(rng.integers(3, 6))
+    X, y = _two_class_data(rng, int(rng.integers(15, 30)), features)
+    weights = np.zeros(features + 1) if start == "zero" else rng.normal(size=features + 1) * 0.3
+    return {"n_features": features, "weights": weights, "X": X, "y": y if variant % 2 == 0 else y.astype(np.float64),
+            "learning_rate": float((0.05, 0.01)[variant % 2]), "steps": steps}
+
+
+def make_one_vs_rest(rng, variant, iterations=1):
+    features, classes = int(rng.integers(3, 5)), int((3, 4)[variant % 2])
+    X = rng.normal(size=(40, features))
+    y = np.concatenate([np.arange(classes), rng.integers(0, classes, size=40 - classes)])
+    return {"n_features": features, "n_classes": classes, "X": X, "y": rng.permutation(y),
+            "learning_rate": 0.05, "n_iters": iterations}
+
+
+def make_ll_gradient(rng, variant):
+    features = int(rng.integers(2, 5))
+    X, y = _two_class_data(rng, 25, features)
+    return {"weights": rng.normal(size=features + 1) * 0.5, "X": X, "y": y}
+
+
+# --------------------------------------------------------------------------------------------
+# The table
+# --------------------------------------------------------------------------------------------
+
+BEHAVIOURS = (
+    Behaviour("1.1.1", "equation-1", 1.5, "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)), "
+              "on random parameters and states", "policy_actions", make_policy_states, exact("actions", 0, 0),
+              exact=True),
+    Behaviour("1.1.1", "tie-at-zero", 0.5, "a score params . obs of exactly 0 gives action 0 (the < of equation (1)); "
+              "scores just above and below 0 give 0 and 1", "policy_actions", make_policy_ties, exact("actions", 0, 0),
+              visible_count=1, exact=True),
+    Behaviour("1.2.1", "one-step", 3, "central differences, equation (3), with one step h for every coordinate "
+              "(also for a single number x), on a cubic, where a forward difference is off",
+              "finite_diff", make_fd_uniform, exact("gradient", 1e-7, 1e-9), visible_count=3, exact=True),
+    Behaviour("1.2.1", "step-per-coordinate", 3, "central differences with a different step h_i for each coordinate",
+              "finite_diff", make_fd_steps, exact("gradient", 1e-7, 1e-9), exact=True),
+    Behaviour("1.2.1", "coordinates-interact", 4, "central differences of a function whose coordinates interact: "
+              "only coordinate i moves, by +-h_i, every other coordinate stays at x",
+              "finite_diff", make_fd_coupled, exact("gradient", 1e-7, 1e-9), exact=True),
+    Behaviour("1.3.1", "mean-reward", 3, "eval_params returns the mean total reward of num_rollouts episodes of "
+              "CartPoleLinearPolicy(params) played with run_policy (each episode re-scored by the reference)",
+              "eval_params", make_eval_case, judge_eval_mean, visible_count=3, services=_episodes_services),
+    Behaviour("1.3.1", "different-starts", 1, "the episodes of one evaluation start from different start states "
+              "(no seed used twice)", "eval_params", make_eval_case, judge_eval_distinct, visible_count=2),
+    Behaviour("1.3.1", "repeatable", 1, "the same call gives the same number again: every episode is seeded from "
+              "the seed argument", "eval_params", make_eval_case, judge_eval_repeat, visible_count=2),
+    Behaviour("1.3.2", "equation-4", 3, "on a known smooth objective g standing in for eval_params, every iteration "
+              "takes the step of equation (4): theta <- theta + learning_rate * (central-difference gradient of g)",
+              "train_known", make_known_training, judge_known_steps),
+    Behaviour("1.3.2", "records-reward", 1, "on the same objective, rewards[t] is g of the parameters after update t",
+              "train_known", make_known_training, judge_known_rewards),
+    Behaviour("1.3.2", "real-run", 1, "in a short real CartPole run, rewards[t] is eval_params of the parameters "
+              "after update t with num_rollouts_per_eval episodes (re-scored by the reference)",
+              "train_real", make_real_training, judge_real_rewards, visible_count=1, services=_real_services),
+    Behaviour("1.3.3", "converges", 2, "with your LEARNING_RATE, the notebook's training run (the reference's "
+              "training code, settings.TRAINING_SEED, from zeros) reaches reward 500 within 7 iterations and "
+              "stays there", "settings_value", make_learning_rate, judge_learning_rate, visible_count=1,
+              services=_learning_rate_services),
+    Behaviour("2.1.1", "gradient", 0, "log_likelihood_gradient equals the summed gradient of equation (7) (shown "
+              "for the grader of the derivation; no automatic points)", "ll_gradient", make_ll_gradient,
+              exact("gradient", 1e-9, 1e-9), exact=True),
+    Behaviour("2.2.1", "values", 1.5, "sigma(z) = 1 / (1 + e^(-z)) for every entry, within float tolerance, for "
+              "|z| <= 35 and arrays of any shape", "sigmoid", make_sigmoid_moderate, exact("values", 1e-9, 1e-12),
+              visible_count=4, exact=True),
+    Behaviour("2.2.1", "tails", 0.5, "far out (|z| up to 1000) the values are 0 and 1 within tolerance, never NaN "
+              "(warnings are not failures)", "sigmoid", make_sigmoid_tails, exact("values", 1e-9, 1e-12), exact=True),
+    Behaviour("2.2.2", "with-bias", 2, "predict_prob gives sigma(w~ . [x, 1]) for each row: the constant 1 feature "
+              "appended, the bias weight last", "predict_prob", make_predict_prob, exact("probabilities", 1e-9, 1e-12),
+              exact=True),
+    Behaviour("2.2.2", "zero-bias", 1, "with a zero bias weight, predict_prob gives sigma(w . x) for each row",
+              "predict_prob", lambda rng, variant: make_predict_prob(rng, variant, zero_bias=True),
+              exact("probabilities", 1e-9, 1e-12), exact=True),
+    Behaviour("2.2.3", "from-zero", 2, "one step of equation (8) from zero weights: w~ += learning_rate * "
+              "sum_i (y_i - sigma(w~ . x~_i)) x~_i, the summed gradient", "gradient_step", make_step,
+              exact("weights", 1e-9, 1e-12), exact=True),
+    Behaviour("2.2.3", "from-weights", 2, "one step of equation (8) from non-zero weights", "gradient_step",
+              lambda rng, variant: make_step(rng, variant, start="random"), exact("weights", 1e-9, 1e-12), exact=True),
+    Behaviour("2.2.3", "two-steps", 1, "two steps in a row: the second starts from the weights the first left in "
+              "self.weights", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random", steps=2),
+              exact("weights", 1e-9, 1e-12), visible_count=1, exact=True),
+    Behaviour("2.3.1", "one-vs-rest", 3, "one iteration of fit: classifier c takes one step of equation (8) on its "
+              "one-vs-rest labels (1 for class c, 0 for every other class)", "one_vs_rest", make_one_vs_rest,
+              exact("weights", 1e-9, 1e-12), exact=True),
+    Behaviour("2.3.1", "every-iteration", 2, "several iterations: one step per class in every iteration",
+              "one_vs_rest", lambda rng, variant: make_one_vs_rest(rng, variant, iterations=3),
+              exact("weights", 1e-9, 1e-12), visible_count=1, exact=True),
+)
+BEHAVIOURS_BY_TODO = {}
+for _behaviour in BEHAVIOURS:
+    BEHAVIOURS_BY_TODO.setdefault(_behaviour.todo, []).append(_behaviour)
+GRADED_TODOS = tuple(BEHAVIOURS_BY_TODO)
+
+
+@dataclass
+class CaseSet:
+    """The cases of one TODO: ``visible`` and ``hidden`` lists of (case id, behaviour, args)."""
+
+    todo: str
+    visible: list = field(default_factory=list)
+    hidden: list = field(default_factory=list)
+
+    def requests(self):
+        """The worker requests: visible cases first, the hidden ones only once those are answered."""
+        phases = [self.visible] + ([self.hidden] if self.hidden else [])
+        return [{"cases": [{"id": case_id, "probe": behaviour.probe, "args": args} for case_id, behaviour, args in phase]}
+                for phase in phases]
+
+
+def case_set(todo, hidden_module=None):
+    cases = CaseSet(todo)
+    for behaviour in BEHAVIOURS_BY_TODO[todo]:
+        for number, args in enumerate(behaviour.visible_cases()):
+            cases.visible.append((f"{behaviour.id}/v{number}", behaviour, args))
+        if hidden_module is not None:
+            for number, args in enumerate(hidden_module.hidden_cases(behaviour)):
+                cases.hidden.append((f"{behaviour.id}/h{number}", behaviour, args))
+    return cases

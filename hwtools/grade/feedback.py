@@ -1,0 +1,68 @@
+"""The text report of a grading result (the dict ``Grader.grade`` returns)."""
+
+from __future__ import annotations
+
+import textwrap
+
+
+def _points(value):
+    return f"{value:g}"
+
+
+def render(result, details=True):
+    """The report as text. Its first line says "NOT ISOLATED: ..." when the student's code ran
+    without a sandbox."""
+    lines = []
+    if not result["isolated"]:
+        lines.append(f"NOT ISOLATED: {result['isolation']}")
+    lines.append(f"Grading {result['submission']}")
+    lines.append(f"against {result['reference']}")
+    if result["isolated"]:
+        lines.append(f"sandbox: {result['isolation']}")
+    if not result["one_mistake_one_place"]:
+        lines.append("Without the instructor's reference, each TODO runs with your own code for the others, and "
+                     "only the visible checks run: the points below are a preview.")
+    lines.append("")
+    width = max(len(entry["title"]) for entry in result["todos"]) + 2
+    lines.append(f"{'TODO':<7}{'what':<{width}}{'automatic':>12}  {'by hand':>8}  status")
+    for entry in result["todos"]:
+        auto = f"{_points(entry['auto_earned'])} / {_points(entry['auto_possible'])}" if entry["auto_possible"] else "-"
+        manual = _points(entry["manual_possible"]) if entry["manual_possible"] else "-"
+        lines.append(f"{entry['id']:<7}{entry['title']:<{width}}{auto:>12}  {manual:>8}  {entry['status']}")
+    total = result["total"]
+    lines.append(f"{'total':<7}{'':<{width}}{_points(total['auto_earned']) + ' / ' + _points(total['auto_possible']):>12}"
+                 f"  {_points(total['manual_possible']):>8}")
+    for note in result["notes"]:
+        lines.extend(_wrapped(f"note: {note}", ""))
+    if details:
+        for entry in result["todos"]:
+            if not entry["checks"] and not entry["notes"]:
+                continue
+            lines.append("")
+            lines.append(f"{entry['id']} {entry['title']}: {_points(entry['auto_earned'])} of "
+                         f"{_points(entry['auto_possible'])} automatic point(s)")
+            for check in entry["checks"]:
+                mark = "pass" if check["passed"] else "FAIL"
+                inputs = f"{check['visible_inputs']} visible" + (f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else "")
+                where = f"; failed on a {check['failed_on']} input" if check["failed_on"] else ""
+                lines.extend(_wrapped(f"[{mark}] {_points(check['points'])} pt: {check['check']} ({inputs} input(s){where})",
+                                      "  "))
+            failure = entry["first_failure"]
+            if failure:
+                if failure["hidden"]:
+                    lines.extend(_wrapped(f"first failing check: {failure['check']}, on a hidden input (hidden inputs "
+                                          "are not shown; the visible ones of this check pass)", "  "))
+                else:
+                    lines.extend(_wrapped(f"first failing check: {failure['check']}", "  "))
+                    for name in ("input", "expected", "actual"):
+                        lines.extend(_wrapped(f"{name + ':':<10}{failure[name]}", "    "))
+            for note in entry["notes"]:
+                lines.extend(_wrapped(f"note: {note}", "  "))
+            if entry["manual_possible"]:
+                lines.extend(_wrapped(f"by hand ({_points(entry['manual_possible'])} pt): {entry['manual']}", "  "))
+    return "\n".join(lines) + "\n"
+
+
+def _wrapped(text, indent):
+    return textwrap.wrap(text, width=110, initial_indent=indent, subsequent_indent=indent + "    ",
+                         break_long_words=True, break_on_hyphens=False) or [indent]
