@@ -14,9 +14,9 @@ same rewards.
 | ``VALUE_RANGE``   | (-2.0, 2.0)  | both varying coordinates run over this interval   |
 | ``NUM_EPISODES``  | 5            | episodes per cell (the same start states in every cell) |
 | ``SEED``          | 0            | master seed of those start states                 |
-| ``DEFAULT_AXES``  | (2, 3)       | θ3 and θ4 (pole angle, pole angular velocity) vary |
+| ``DEFAULT_AXES``  | (2, 3)       | θ₃ and θ₄ (pole angle, pole angular velocity) vary |
 
-Axes are 0-based indices into θ (0 is θ1, the weight on the cart position).
+Axes are 0-based indices into θ (0 is θ₁, the weight on the cart position).
 
 ``LandscapeExplorer`` is the notebook's widget: two dropdowns choose the axes, ``set_params``
 moves the slice to another θ. Its drawing is done by ``render_landscape``, a plain function,
@@ -42,7 +42,7 @@ NUM_EPISODES = 5
 SEED = 0
 DEFAULT_AXES = (2, 3)
 
-AXIS_NAMES = tuple(f"θ{index + 1}" for index in range(NUM_OBSERVATIONS))
+AXIS_NAMES = ("θ₁", "θ₂", "θ₃", "θ₄")  # θ₁ is the weight on the cart position, ...
 AXIS_LABELS = tuple(f"{symbol} · {name}" for symbol, name in zip(AXIS_NAMES, OBSERVATION_NAMES))
 
 
@@ -85,7 +85,7 @@ def check_axes(axes, name="axes"):
         or pair[0] == pair[1]
     ):
         raise ValueError(
-            f"{name} must be two different coordinate indices in 0..3 (0 is θ1 ... 3 is θ4), "
+            f"{name} must be two different coordinate indices in 0..3 (0 is θ₁ ... 3 is θ₄), "
             f"horizontal then vertical, got {axes!r}"
         )
     return int(pair[0]), int(pair[1])
@@ -174,15 +174,21 @@ class LandscapeFrame:
     caption: str
 
 
+def format_theta(theta):
+    """θ as the explorer writes it: '(0.01, -0.59, -0.89, -1.04)'."""
+    return "(" + ", ".join(f"{value + 0.0:.2f}" for value in theta) + ")"  # + 0.0: no "-0.00" for -0.0
+
+
 def landscape_caption(landscape):
-    """The explorer's line under the picture, e.g.
-    'θ3 across, θ4 up; 41 × 41 cells × 5 episodes each; 19% of the cells score 500 on every episode'."""
+    """The explorer's line under the picture, e.g. 'θ₃ across, θ₄ up; through θ = (0.01, -0.59, -0.89, -1.04);
+    41 × 41 cells × 5 episodes each; 17% of the cells score 500 on every episode'."""
     horizontal, vertical = landscape.axes
     n = len(landscape.values)
     share = np.mean(landscape.mean_rewards == MAX_EPISODE_REWARD)
     return (
-        f"{AXIS_NAMES[horizontal]} across, {AXIS_NAMES[vertical]} up; {n} × {n} cells × "
-        f"{landscape.num_episodes} episodes each; {share:.0%} of the cells score {MAX_EPISODE_REWARD} on every episode"
+        f"{AXIS_NAMES[horizontal]} across, {AXIS_NAMES[vertical]} up; through θ = {format_theta(landscape.theta)}; "
+        f"{n} × {n} cells × {landscape.num_episodes} episodes each; "
+        f"{share:.0%} of the cells score {MAX_EPISODE_REWARD} on every episode"
     )
 
 

@@ -4,10 +4,12 @@ The test runs the problem 1 notebook if it holds the explorer (a cell calling
 ``LandscapeExplorer(``), otherwise a notebook made of the landscape section's cells below (the
 cells to insert into the problem 1 notebook after training), with a stand-in for the training run
 they read. It switches the horizontal axis in its dropdown and sees the picture and its caption
-change, then picks the other dropdown's coordinate and sees the two swap. Each redraw is timed
-end to end as the browser sees it: from the dropdown's change event until the new picture has
-loaded and the caption names the new axes. The times are printed and written to
-``test-artifacts/landscape_redraw.txt`` (the README's number); no wall-clock assertion.
+change, then picks the other dropdown's coordinate and sees the two swap. In the problem 1
+notebook it also clicks the slider panel's "Show θ in the landscape" button and sees the explorer
+redrawn through the panel's θ. Each redraw is timed end to end as the browser sees it: from the
+change event (or click) until the new picture has loaded and the caption names the new axes or θ.
+The times are printed and written to ``test-artifacts/landscape_redraw.txt`` (the README's
+number); no wall-clock assertion.
 
 JupyterLab and Chromium are started as in ``tests/test_browser.py`` (``tests/lab_under_test.py``),
 whose fixtures and notebook helpers this module uses.
@@ -16,7 +18,6 @@ whose fixtures and notebook helpers this module uses.
 from __future__ import annotations
 
 import json
-import re
 import shutil
 
 import nbformat
@@ -45,8 +46,8 @@ pytestmark = pytest.mark.browser
 EXPLORER_CALL = "LandscapeExplorer("
 CELLS_NOTEBOOK = "landscape_section.ipynb"
 
-# The landscape section of the problem 1 notebook, to go after training (it reads `run`,
-# `np`, and `panel`, the slider panel of 1.1.2), as (cell type, source).
+# The landscape section of the problem 1 notebook, to go after training (it reads `np` and
+# `settings` from the first cell, `panel`, the slider panel of 1.1.2, and `run`), as (cell type, source).
 LANDSCAPE_CELLS = [
     ("markdown", """\
 ### Seeing the reward landscape
@@ -60,7 +61,6 @@ cell plays the *same* 5 start states, so two cells differ only because their pol
 First the slice through the origin: $\\theta_1 = \\theta_2 = 0$ held, and the weights on the pole angle ($\\theta_3$) and on its
 angular velocity ($\\theta_4$) varying."""),
     ("code", """\
-from hwlib import settings
 from hwlib.landscape import LandscapeExplorer, reward_slice
 from hwlib.plots import plot_reward_landscape
 
@@ -71,41 +71,43 @@ plot_reward_landscape(origin_slice)"""),
     ("markdown", """\
 Two things stand out.
 
-* **Rays from the origin.** Every border between two colours is a straight line through $(0, 0)$. This is the scale
-  invariance from "Choosing the defaults": $\\pi_{c\\theta} = \\pi_\\theta$ for every $c > 0$, so $g(c\\theta) = g(\\theta)$, and $g$ is
-  constant along every ray that leaves the origin. Only the direction of $\\theta$ matters, which is also why all the
-  rays crowd together at the origin: a tiny $\\theta$ can point anywhere. (Here the held coordinates are 0, so each ray
-  lies inside the picture. When they are not 0, as in the next slice, the rays leave the plane, and the borders are
-  only nearly straight far from the centre, where the held weights matter less.)
-* **Flat plateaus.** Large regions have one colour: the whole upper half, where every policy loses the pole within about
-  ten steps, and the yellow region, where every episode lasts all 500 steps. Inside a plateau, a finite difference
-  compares two equal rewards and returns exactly zero. Only a step $h$ long enough to reach across a border sees
-  any slope, which is why the training uses $h = 0.5$ and not something like $10^{-4}$."""),
+* **Rays from the origin.** Every border between two colours is a straight line through $(0, 0)$. The policy only
+  sees the sign of $\\theta^\\top s$, and for any $c > 0$ the sign of $(c\\theta)^\\top s$ is the same, so $\\pi_{c\\theta} = \\pi_\\theta$,
+  $g(c\\theta) = g(\\theta)$, and $g$ is constant along every ray that leaves the origin. Only the direction of $\\theta$
+  matters, which is also why all the borders meet at the origin: a tiny $\\theta$ can point anywhere. (Here the held
+  coordinates are 0, so each ray lies inside the picture. When they are not 0, as in the next slice, the rays leave
+  the plane, and the borders are only nearly straight far from the centre, where the held weights matter less.)
+* **Flat plateaus.** Large regions have one colour: the whole upper half, where every policy loses the pole within
+  about ten steps, and the yellow region, where every episode lasts all 500 steps. Inside a plateau, a finite
+  difference compares two equal rewards and returns exactly zero. Only a step $h$ long enough to reach across a
+  border sees any slope, which is why the training uses $h = 0.5$ and not something like $10^{-4}$."""),
     ("markdown", """\
-Now the slice through the $\\theta$ that training found, with $\\theta_1$ and $\\theta_2$ held at their trained values. The red
-dots are the training path: dot $t$ is $\\theta$ after $t$ updates (`run.params_history`), projected onto the slice (the path
-also moves in $\\theta_1$ and $\\theta_2$, which this picture cannot show). The white circles around the star are
-$\\theta \\pm h$ along the two axes: the points the finite difference evaluates in these two directions."""),
+Now the slice through the $\\theta$ that training found, with $\\theta_1$ and $\\theta_2$ held at their trained values. The
+red dots are the training path: dot $t$ is $\\theta$ after $t$ updates (`run.params_history`), projected onto the slice
+(the path also moves in $\\theta_1$ and $\\theta_2$, which this picture cannot show). The white circles around the star
+are $\\theta \\pm h$ along the two axes: the points the finite difference evaluates in these two directions."""),
     ("code", """\
 trained_slice = reward_slice(run.policy.params, axes=(2, 3))
 plot_reward_landscape(trained_slice, path=run.params_history, fd_step=settings.FD_STEP)"""),
     ("markdown", """\
-The path climbs out of the dark plateau around the origin towards the yellow one. Once $\\theta + h e_i$ and $\\theta - h e_i$
-both score 500 on every episode of an iteration, the finite difference along $e_i$ is exactly zero and that coordinate stops
-moving: that is where dots pile up (their label then reads like "9–20"). The same picture explains why a learning rate can
-be too large: one long step can jump across a border into a plateau where every neighbour scores the same, and the gradient
-is zero from then on, whether the plateau is a good one or not.
+The path climbs out of the dark plateau around the origin into the yellow one. Once $\\theta + h e_i$ and
+$\\theta - h e_i$ score the same on the episodes of an iteration (for instance 500 on every one), the finite difference
+along $e_i$ is exactly zero and that coordinate stops moving: that is where the dots pile up, and one label then covers
+the run of iterations, first–last. (Training scores each iteration on 20 fresh episodes, the picture on 5 fixed ones,
+so the borders training saw are close to these, not identical.) The picture also shows how a learning rate can be too
+large: one long step can jump across a border into a plateau where every neighbour scores the same, and from then on
+the gradient is zero, whether the plateau is a good one or not.
 
-**Explore.** The dropdowns below choose which two coordinates vary; the other two stay at the current $\\theta$. The slider
-panel of 1.1.2 has a button that sends its $\\theta$ here, so you can tune a policy by hand and then see where it sits in
-the landscape. Each redraw plays 8,405 episodes and takes about half a second."""),
+**Explore.** The dropdowns below choose which two coordinates vary; the other two stay at the current $\\theta$. The
+slider panel of 1.1.2 has a button that sends its $\\theta$ here, so you can tune a policy by hand and then see where it
+sits in the landscape. Each redraw plays 8,405 episodes and takes about half a second."""),
     ("code", """\
 # NBVAL_IGNORE_OUTPUT
 explorer = LandscapeExplorer(run.policy.params, path=run.params_history, fd_step=settings.FD_STEP)
 explorer.widget"""),
     ("code", """\
-# NBVAL_IGNORE_OUTPUT
-panel.on_send_params(explorer.set_params)"""),
+# The slider panel's "Show θ in the landscape" button (1.1.2) now sends its θ to the explorer.
+panel.on_send_params(explorer.set_params);"""),
 ]
 
 # What the made-up notebook runs first, in place of the problem 1 notebook's earlier cells.
@@ -113,7 +115,7 @@ STAND_IN_CELL = """\
 import numpy as np
 from types import SimpleNamespace
 
-from hwlib import CartPoleLinearPolicy
+from hwlib import CartPoleLinearPolicy, settings
 
 # Stands in for the notebook's training run: a straight path from the origin to a balancing θ.
 params_history = np.linspace(np.zeros(4), [0.01, -0.59, -0.89, -1.04], 8)
@@ -159,23 +161,30 @@ def lab(chromium, notebook_name, tmp_path_factory):
 # ipywidgets shows the spaces of option labels as no-break spaces.
 OPTION_TEXT_JS = "option => option.textContent.replace(/\\u00a0/g, ' ').trim()"
 
-# Change a <select> to the option labelled `label`, as a student's pick does, and resolve with the
-# milliseconds until the image has a new, loaded source and the caption starts with `caption`.
-TIMED_PICK_JS = """async ([select, image, caption, label, expected]) => {
-    const text = %s;
-    const option = [...select.options].find(option => text(option) === label);
-    if (!option) throw new Error(`no option ${label} in ${[...select.options].map(o => o.textContent)}`);
+# Do what a student does to `control`: pick the option labelled `label` in a <select>, or click
+# it (a button) when `label` is null. Resolve with the milliseconds until the image has a new,
+# loaded source and the caption contains `expected`.
+TIMED_REDRAW_JS = """async ([control, image, caption, label, expected]) => {
     const oldSource = image.src;
-    const start = performance.now();
-    select.value = option.value;
-    select.dispatchEvent(new Event('change', {bubbles: true}));
+    let start;
+    if (label === null) {
+        start = performance.now();
+        control.click();
+    } else {
+        const text = %s;
+        const option = [...control.options].find(option => text(option) === label);
+        if (!option) throw new Error(`no option ${label} in ${[...control.options].map(text)}`);
+        start = performance.now();
+        control.value = option.value;
+        control.dispatchEvent(new Event('change', {bubbles: true}));
+    }
     await new Promise((resolve, reject) => {
         const check = () => {
             if (image.src !== oldSource && image.complete && image.naturalWidth > 0
-                && caption.textContent.trim().startsWith(expected)) {
+                && caption.textContent.includes(expected)) {
                 resolve();
             } else if (performance.now() - start > %d) {
-                reject(new Error(`no redraw: caption reads ${caption.textContent.trim()}`));
+                reject(new Error(`no redraw: the caption reads ${caption.textContent.trim()}`));
             } else {
                 setTimeout(check, 5);
             }
@@ -184,6 +193,8 @@ TIMED_PICK_JS = """async ([select, image, caption, label, expected]) => {
     });
     return performance.now() - start;
 }""" % (OPTION_TEXT_JS, WIDGET_TIMEOUT_MS)
+
+SEND_BUTTON_TEXT = "Show θ in the landscape"  # the slider panel's button that sends its θ to the explorer
 
 
 def dropdown(explorer, description):
@@ -194,16 +205,17 @@ def selected_label(select):
     return select.evaluate(f"select => ({OPTION_TEXT_JS})(select.options[select.selectedIndex])")
 
 
-def timed_pick(explorer, description, label, expected_caption):
-    """Pick ``label`` in the dropdown ``description``; return the redraw time in ms as the browser sees it."""
+def timed_redraw(explorer, control, label, expected_caption, what):
+    """Pick ``label`` in the dropdown ``control`` (or click the button ``control`` if ``label`` is
+    None); return the redraw time in ms as the browser sees it."""
     try:
         return explorer.page.evaluate(
-            TIMED_PICK_JS,
-            [dropdown(explorer, description).element_handle(), explorer.locator("img.hwlib-landscape").element_handle(),
+            TIMED_REDRAW_JS,
+            [control.element_handle(), explorer.locator("img.hwlib-landscape").element_handle(),
              explorer.locator(".hwlib-landscape-caption").element_handle(), label, expected_caption],
         )
     except Exception as error:
-        pytest.fail(f"picking {label!r} in {description!r}: {error}" + console_summary(explorer.page))
+        pytest.fail(f"{what}: {error}" + console_summary(explorer.page))
 
 
 def test_landscape_explorer_switches_axes_in_jupyterlab(page, lab, notebook_name):
@@ -225,27 +237,48 @@ def check_landscape_explorer(page, lab, notebook_name):
     image = explorer.locator("img.hwlib-landscape")
     caption = explorer.locator(".hwlib-landscape-caption")
     page.wait_for_function("img => img.complete && img.naturalWidth > 0", arg=image.element_handle())
-    assert caption.inner_text().startswith("θ3 across, θ4 up;"), caption.inner_text()
+    assert caption.inner_text().startswith("θ₃ across, θ₄ up;"), caption.inner_text()
     assert (selected_label(dropdown(explorer, "across")), selected_label(dropdown(explorer, "up"))) == AXIS_LABELS[2:4]
     before = image.screenshot()
     save_screenshot(explorer, "landscape_explorer.png")
 
-    # Across: θ3 -> θ1. The picture is redrawn with the new axis.
-    first_ms = timed_pick(explorer, "across", AXIS_LABELS[0], "θ1 across, θ4 up;")
+    # Across: θ₃ -> θ₁. The picture is redrawn with the new axis.
+    times = {"θ₃ -> θ₁ across": timed_redraw(explorer, dropdown(explorer, "across"), AXIS_LABELS[0], "θ₁ across, θ₄ up;",
+                                             "picking θ₁ across")}
     after = image.screenshot()
-    assert after != before, "the picture did not change when the horizontal axis went from θ3 to θ1"
+    assert after != before, "the picture did not change when the horizontal axis went from θ₃ to θ₁"
     save_screenshot(explorer, "landscape_explorer_theta1_across.png")
 
-    # Up: θ4 -> θ1, the coordinate shown across: the two swap.
-    swap_ms = timed_pick(explorer, "up", AXIS_LABELS[0], "θ4 across, θ1 up;")
+    # Up: θ₄ -> θ₁, the coordinate shown across: the two swap.
+    times["swap"] = timed_redraw(explorer, dropdown(explorer, "up"), AXIS_LABELS[0], "θ₄ across, θ₁ up;", "picking θ₁ up")
     assert selected_label(dropdown(explorer, "across")) == AXIS_LABELS[3], "choosing the other dropdown's axis should swap the two"
+    assert caption.inner_text().startswith("θ₄ across, θ₁ up;"), caption.inner_text()
     assert image.screenshot() not in (before, after)
     save_screenshot(explorer, "landscape_explorer_swapped.png")
+
+    if notebook_name == P1_NOTEBOOK:  # the real notebook wires the slider panel to the explorer
+        times["θ sent from the panel"] = check_panel_sends_theta(page, explorer)
     assert not output_problems(page), output_problems(page)
 
-    report = (f"landscape explorer redraw after an axis change, end to end in Chromium ({notebook_name}): "
-              f"{first_ms:.0f} ms (θ3 -> θ1 across), {swap_ms:.0f} ms (swap)")
+    report = (f"landscape explorer redraw, end to end in Chromium ({notebook_name}): "
+              + ", ".join(f"{ms:.0f} ms ({what})" for what, ms in times.items()))
     print(report)
     ARTIFACTS.mkdir(exist_ok=True)
     (ARTIFACTS / "landscape_redraw.txt").write_text(report + "\n")
-    assert re.match(r"^θ4 across, θ1 up;", caption.inner_text())
+
+
+def check_panel_sends_theta(page, explorer):
+    """The slider panel's button redraws the explorer through the θ the panel shows."""
+    from hwlib.landscape import format_theta
+    from test_browser import read_params  # the panel's own test knows how to read its sliders
+
+    panel = page.locator(".jp-NotebookPanel .jp-OutputArea-output", has=page.locator(".hwlib-slider-panel")).first
+    panel.scroll_into_view_if_needed()
+    expected = f"through θ = {format_theta(read_params(panel))};"
+    button = panel.locator("button", has_text=SEND_BUTTON_TEXT)
+    if expected in explorer.locator(".hwlib-landscape-caption").inner_text():
+        pytest.fail(f"the panel shows the θ the explorer already shows ({expected}): the check would prove nothing")
+    sent_ms = timed_redraw(explorer, button, None, expected, f"clicking {SEND_BUTTON_TEXT!r}")
+    explorer.scroll_into_view_if_needed()
+    save_screenshot(explorer, "landscape_explorer_from_panel.png")
+    return sent_ms

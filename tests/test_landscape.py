@@ -50,8 +50,8 @@ def test_cells_hold_the_other_coordinates_and_vary_the_chosen_ones(default_slice
     assert params.shape == (n * n, 4)
     np.testing.assert_array_equal(params[:, [0, 1]], np.tile(THETA[[0, 1]], (n * n, 1)))
     grid = params.reshape(n, n, 4)  # [vertical j, horizontal i]
-    np.testing.assert_array_equal(grid[3, :, 2], default_slice.values)  # across: θ3
-    np.testing.assert_array_equal(grid[:, 3, 3], default_slice.values)  # up: θ4
+    np.testing.assert_array_equal(grid[3, :, 2], default_slice.values)  # across: θ₃
+    np.testing.assert_array_equal(grid[:, 3, 3], default_slice.values)  # up: θ₄
 
 
 def test_each_cell_is_the_mean_of_its_episodes_from_the_shared_starts(default_slice):
@@ -112,7 +112,7 @@ def test_the_same_arguments_give_the_same_slice_and_the_seed_picks_the_starts():
 
 
 def test_slice_params_lays_cells_out_row_by_row():
-    params = slice_params([1.0, 2.0, 3.0, 4.0], (3, 0), [10.0, 20.0])  # θ4 across, θ1 up
+    params = slice_params([1.0, 2.0, 3.0, 4.0], (3, 0), [10.0, 20.0])  # θ₄ across, θ₁ up
     np.testing.assert_array_equal(params, [[10, 2, 3, 10], [10, 2, 3, 20], [20, 2, 3, 10], [20, 2, 3, 20]])
 
 
@@ -152,7 +152,7 @@ def test_bad_arguments_are_rejected_naming_the_argument(kwargs, error, message):
 
 # --- the figure ------------------------------------------------------------------------------
 
-# Iterations 5-6 and 9-12 stay put on the (θ3, θ4) slice (they move only in θ1, θ2).
+# Iterations 5-6 and 9-12 stay put on the (θ₃, θ₄) slice (they move only in θ₁, θ₂).
 PATH = np.array([
     [0.0, 0.0, 0.0, 0.0],
     [0.0, 0.0, -0.3, -0.2],
@@ -181,9 +181,9 @@ def test_figure_shows_the_slice_with_a_fixed_colour_bar_named_axes_and_the_held_
     (image,) = ax.get_images()
     assert image.get_clim() == (0, 500)
     np.testing.assert_array_equal(image.get_array(), default_slice.mean_rewards)
-    assert ax.get_xlabel() == "θ3 · pole angle" == AXIS_LABELS[2]
-    assert ax.get_ylabel() == "θ4 · pole angular velocity"
-    assert "θ1 = 0.30" in ax.get_title() and "θ2 = -0.60" in ax.get_title()
+    assert ax.get_xlabel() == "θ₃ · pole angle" == AXIS_LABELS[2]
+    assert ax.get_ylabel() == "θ₄ · pole angular velocity"
+    assert "θ₁ = 0.30" in ax.get_title() and "θ₂ = -0.60" in ax.get_title()
     assert colour_bar_ax.get_ylim() == (0, 500)
     (theta_marker,) = ax.get_lines()
     assert (theta_marker.get_xdata()[0], theta_marker.get_ydata()[0]) == (-1.1, -0.7)
@@ -206,6 +206,13 @@ def test_figure_marks_the_finite_difference_stencil(default_slice):
     stencil = next(line for line in ax.get_lines() if "h = 0.5" in line.get_label())
     np.testing.assert_allclose(stencil.get_xdata(), [-1.6, -0.6, -1.1, -1.1])
     np.testing.assert_allclose(stencil.get_ydata(), [-0.7, -0.7, -1.2, -0.2])
+
+
+def test_figure_names_theta_and_says_when_it_lies_outside_the_plotted_range():
+    inside = plot_reward_landscape(reward_slice([-0.0, 0.5, 1.0, -1.5], grid_size=3, num_episodes=1)).axes[0]
+    assert inside.get_lines()[-1].get_label() == "θ = (0.00, 0.50, 1.00, -1.50)"
+    outside = plot_reward_landscape(reward_slice([0.0, 0.5, 5.0, -1.5], grid_size=3, num_episodes=1)).axes[0]
+    assert outside.get_lines()[-1].get_label() == "θ = (0.00, 0.50, 5.00, -1.50) (outside the plotted range)"
 
 
 def test_figure_is_redrawn_in_place(default_slice):
@@ -242,7 +249,7 @@ def test_render_landscape_computes_and_draws_the_slice():
     np.testing.assert_array_equal(frame.landscape.mean_rewards, reward_slice(THETA, (1, 2), **SMALL).mean_rewards)
     assert frame.png.startswith(PNG_SIGNATURE)
     assert frame.caption == landscape_caption(frame.landscape)
-    assert frame.caption.startswith("θ2 across, θ3 up; 5 × 5 cells × 2 episodes each; ")
+    assert frame.caption.startswith("θ₂ across, θ₃ up; through θ = (0.30, -0.60, -1.10, -0.70); 5 × 5 cells × 2 episodes each; ")
 
 
 def test_explorer_shows_the_slice_through_its_theta():

@@ -9,7 +9,7 @@ import numpy as np
 
 from hwlib._checks import check_positive_number
 from hwlib.cartpole import MAX_EPISODE_REWARD
-from hwlib.landscape import AXIS_LABELS, AXIS_NAMES, RewardSlice, check_path
+from hwlib.landscape import AXIS_LABELS, AXIS_NAMES, RewardSlice, check_path, format_theta
 from hwlib.plots._figure import figure_png, new_figure  # noqa: F401  (figure_png is re-exported)
 
 COLOUR_MAP = "viridis"
@@ -68,7 +68,7 @@ def plot_reward_landscape(landscape, path=None, fd_step=None, figure=None):
         _draw_path(ax, path[:, horizontal], path[:, vertical], span=high - low)
     outside = not (low <= theta_x <= high and low <= theta_y <= high)
     ax.plot(theta_x, theta_y, ls="none", marker="*", ms=16, mfc="white", mec="black",
-            label="θ (outside the plotted range)" if outside else f"θ = ({', '.join(f'{v:.2f}' for v in landscape.theta)})")
+            label=f"θ = {format_theta(landscape.theta)}" + (" (outside the plotted range)" if outside else ""))
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1, fontsize="small", frameon=False)
     return figure
 
