@@ -33,14 +33,15 @@ from dataclasses import dataclass
 import ipywidgets as widgets
 import numpy as np
 
+from hwlib import settings
 from hwlib._checks import as_float_array, check_count, check_finite, check_params, check_positive_number, check_seed
 from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, OBSERVATION_NAMES, episode_seeds, run_episodes
 
-GRID_SIZE = 41
-VALUE_RANGE = (-2.0, 2.0)
-NUM_EPISODES = 5
-SEED = 0
-DEFAULT_AXES = (2, 3)
+GRID_SIZE = settings.LANDSCAPE_GRID_SIZE
+VALUE_RANGE = settings.LANDSCAPE_VALUE_RANGE
+NUM_EPISODES = settings.LANDSCAPE_NUM_EPISODES
+SEED = settings.LANDSCAPE_SEED
+DEFAULT_AXES = settings.LANDSCAPE_AXES
 
 AXIS_NAMES = ("θ₁", "θ₂", "θ₃", "θ₄")  # θ₁ is the weight on the cart position, ...
 AXIS_LABELS = tuple(f"{symbol} · {name}" for symbol, name in zip(AXIS_NAMES, OBSERVATION_NAMES))
