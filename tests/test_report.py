@@ -1,52 +1,224 @@
-"""``python -m hwtools.report OUT_DIR``: every file is written, and answers.md holds the library's numbers.
+"""``python -m hwtools.report OUT_DIR``: the report takes every number from the executed notebooks, and a grader
+can grade it (page numbers, a name line, the 2.1.1 derivation typeset, figures that fill the page and say what
+they show, pages that read offline).
 
-The command runs once per test session (module fixture, about a minute: it executes both
-notebooks and redoes their computations); the tests then read what it wrote and compare its
-numbers with ``compute_answers()`` and with the library called directly.
+The first part needs no notebook run. The second runs the command once (module fixture, about a minute: it
+executes both notebooks) and reads what it wrote: the PDF through poppler's ``pdftotext`` and ``pdftoppm``.
 """
 
 from __future__ import annotations
 
 import html
+import json
 import os
 import re
+import shutil
 import subprocess
 import sys
+from pathlib import Path
+from types import SimpleNamespace
 
 import nbformat
 import numpy as np
 import pytest
 
-from hwlib import report
+from hwlib import settings
+from hwlib.cartpole import CartPoleLinearPolicy, run_policy
+from hwlib.plots.training import PRINT_WIDTH
+from hwtools import report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 REPORT_TIMEOUT = 900  # seconds; the run takes about a minute on 2 cores
+STUDENT_NAME = "Ada Lovelace / alovelac"
+
+
+# --- part 1: the pieces, without running the notebooks ---------------------------------------------
+
+
+def test_the_export_cell_runs_on_its_own_and_writes_json(tmp_path):
+    """The extra cell needs nothing but the kernel's namespace; it writes plain JSON and cleans up after itself."""
+    wanted = {"tried": (), "run": ("rewards", "policy.params"), "rate": (), "where": (), "missing": (), "opaque": (),
+              "short": ("nope",)}
+    namespace = {
+        "tried": {"mine": (0.1, -0.2, np.float32(-1.0), -0.3)},
+        "run": SimpleNamespace(rewards=np.array([9.5, 500.0]), policy=SimpleNamespace(params=np.zeros(4))),
+        "rate": np.float64(7e-4),
+        "where": Path("/data/data.npz"),
+        "opaque": object(),
+        "short": 3,
+    }
+    exec(compile(report.export_cell_source(wanted, tmp_path / "values.json"), "<extra cell>", "exec"), namespace)
+    exported = json.loads((tmp_path / "values.json").read_text())
+    assert exported["values"] == {
+        "tried": {"mine": [0.1, -0.2, -1.0, -0.3]},
+        "run": {"rewards": [9.5, 500.0], "policy.params": [0.0, 0.0, 0.0, 0.0]},
+        "rate": 7e-4,
+        "where": "/data/data.npz",
+    }
+    assert exported["problems"] == [
+        "`missing` is not defined",
+        "`opaque` holds a object, which the report cannot read",
+        "`short` has no attribute `short.nope` (it is a int)",
+    ]
+    assert "_report_export_variables" not in namespace
+
+
+def test_a_missing_variable_is_named_with_where_it_is_made(tmp_path):
+    path = tmp_path / "values.json"
+    path.write_text(json.dumps({"values": {}, "problems": ["`tried` is not defined"]}))
+    with pytest.raises(report.ReportError, match=r"(?s)p1\.ipynb: .*`tried` is not defined \(made in TODO 1\.1\.2"):
+        report.read_exported(path, "p1.ipynb")
+
+
+def _p1_values(**changes):
+    values = {
+        "tried": {"my first guess": [0.1, -0.2, -1.0, -0.3], "pole angle only": [0, 0, -1, 0]},
+        "random_rewards": [9.0, 11.0, 500.0, 30.0],
+        "learning_rate": 0.0007,
+        "run": {"rewards": [9.4, 136.55, 500.0, 500.0], "policy.params": [0.0081, -0.5874, -0.8861, -1.0]},
+        "sweep": {"learning_rates": [1e-4, 1e-3], "converged_fraction": [0.0, 0.95], "seeds": list(range(20)), "deadline": 7},
+    }
+    values.update(changes)
+    return values
+
+
+def _p2_values():
+    return {
+        "data": {"names": ["Apple", "Carrot"], "source": "synthetic stand-in", "path": None, "labels.shape": [10]},
+        "train_accuracies": [0.5, 0.8, 0.995],
+        "test_accuracy": 0.75,
+        "test_predictions": [0, 1, 1, 0],
+        "y_test": [0, 1, 0, 0],
+        "first_above_99": 2,
+    }
+
+
+def test_bad_notebook_values_are_refused_naming_the_variable():
+    with pytest.raises(report.ReportError, match=r"`tried\['x'\]` must be 4 values.*TODO 1\.1\.2"):
+        report.problem_one(_p1_values(tried={"x": [1, 2, 3]}))
+    with pytest.raises(report.ReportError, match=r"`tried` must be a non-empty dict"):
+        report.problem_one(_p1_values(tried=[0, 0, 0, 0]))
+    with pytest.raises(report.ReportError, match=r"`learning_rate` must be a number"):
+        report.problem_one(_p1_values(learning_rate=None))
+    with pytest.raises(report.ReportError, match=r"`run.rewards` must hold finite numbers"):
+        report.problem_one(_p1_values(run={"rewards": [1.0, float("nan")], "policy.params": [0, 0, 0, 0]}))
+    values = _p2_values()
+    values["test_predictions"] = [0, 1, 5, 0]
+    with pytest.raises(report.ReportError, match=r"`test_predictions` must hold class indices 0\.\.1"):
+        report.problem_two(values, "derivation")
+
+
+def test_the_answers_show_the_students_parameters_and_the_notebooks_numbers():
+    p1 = report.problem_one(_p1_values())
+    p2 = report.problem_two(_p2_values(), "Write $z_i = \\tilde w^\\top \\tilde x_i$.\n\n$$\\nabla l = X^\\top (y - p)$$")
+    answers = report.compute_answers(p1, p2)
+    text = report.answers_markdown(answers)
+    for name, params in (("my first guess", (0.1, -0.2, -1.0, -0.3)), ("pole angle only", (0, 0, -1, 0))):
+        rewards = [int(run_policy(CartPoleLinearPolicy(params), seed=seed)) for seed in settings.HAND_TUNING_SEEDS]
+        row = f"| {name} | {report.tried_params_text(params)} | "
+        assert row in text and text.split(row)[1].split("\n")[0].endswith(f"| {', '.join(map(str, rewards))} |")
+    assert "hand-tuned" not in text
+    assert report.rewards_text([9.4, 136.25, 500]) == "9.4, 136.2, 500.0"
+    assert f"- reward per iteration: {report.rewards_text(p1.training_rewards)}" in text
+    assert "- final parameters: **[0.008, -0.587, -0.886, -1.000]**" in text
+    assert "- converged (500 from then on) at iteration: **2** (deadline 7: met)" in text
+    assert "- 1 of 4 random policies reached the maximum reward of 500: **25.0%**" in text
+    assert "| converged | 0% | 95% |" in text
+    assert "- test accuracy: **0.750**" in text and "- first iteration with train accuracy above 99%: **2**" in text
+    assert "$$\\nabla l = X^\\top (y - p)$$" in text
+    assert f"**{report.NAME_LABEL}** {report.NAME_BLANK}" in text
+    assert f"**{report.NAME_LABEL}** Ada &amp; Bob" in report.answers_markdown(answers, "Ada & Bob")
+    figures = report.make_figures(p1, p2)
+    assert sorted(figures) == sorted(report.FIGURES)
+    assert figures["p2_confusion_matrix.png"].get_suptitle().startswith("data: synthetic stand-in")
+
+
+def _notebook(*cells):
+    return nbformat.v4.new_notebook(cells=[
+        nbformat.v4.new_code_cell(source[5:]) if source.startswith("code:") else nbformat.v4.new_markdown_cell(source)
+        for source in cells
+    ])
+
+
+def test_the_derivation_is_the_markdown_under_the_2_1_1_heading():
+    notebook = _notebook(
+        "# Problem 2",
+        "The objective.\n\n### 2.1.1 The gradient\n<!-- BEGIN SOLUTION 2.1.1 -->\nStep 1: $a$\n#### a detail\n<!-- END SOLUTION 2.1.1 -->",
+        "More: $$b$$",
+        "### Checking the gradient",
+        "not this",
+    )
+    assert report.derivation_markdown(notebook) == "Step 1: $a$\n#### a detail\n\nMore: $$b$$"
+    assert report.derivation_markdown(_notebook("## 2.1.1 Gradient", "my answer", "code:x = 1", "after")) == "my answer"
+    assert report.derivation_markdown(_notebook("### 2.1.10 Not it", "text")) is None
+    assert report.derivation_markdown(_notebook("### 2.1.1 Gradient\n<!-- BEGIN TODO 2.1.1 -->\nYOUR ANSWER HERE")) == "YOUR ANSWER HERE"
+
+
+def test_the_name_line():
+    assert report.check_name(None) is None
+    assert report.check_name("  Ada Lovelace / alovelac ") == "Ada Lovelace / alovelac"
+    for bad in ("", "   ", "two\nlines", "x" * 121):
+        with pytest.raises(report.ReportError, match="--name"):
+            report.check_name(bad)
+    header, footer = report.pdf_templates(None)
+    assert f"{report.NAME_LABEL} {report.NAME_BLANK}" in header
+    assert '<span class="pageNumber"></span> of <span class="totalPages"></span>' in footer
+    assert "Ada &amp; Bob" in report.pdf_templates("Ada & Bob")[0]
+
+
+def test_local_fonts_are_embedded_and_missing_ones_dropped(tmp_path):
+    font = tmp_path / "Math Regular.woff"
+    font.write_bytes(b"wOFF-bytes")
+    css = f"src: url('{font.as_uri()}?V=2.7.9') format('woff'); src: url({(tmp_path / 'gone.otf').as_uri()})"
+    embedded = report.embed_local_fonts(css)
+    assert "url(data:font/woff;base64,d09GRi1ieXRlcw==) format('woff')" in embedded
+    assert "url(data:,)" in embedded and "file:" not in embedded
+
+
+def test_the_report_computes_nothing_the_notebooks_compute():
+    """No training, sweep, sampling or fitting in the report, and no setting copied: it reads the kernels' values."""
+    source = Path(report.__file__).read_text(encoding="utf-8")
+    for name in ("train_cartpole_policy", "train_cartpole_policies", "learning_rate_sweep", "random_policy_rewards",
+                 "eval_params", "fit", "load_food_cutting", "train_test_split", "geomspace", "BALANCING_PARAMS",
+                 "DEFAULT_LEARNING_RATE"):
+        assert not re.search(rf"\b{name}\b", source), f"the report uses {name}"
+    assert not re.search(r"^[A-Z_]*(RATE|SEED|ITERATIONS|ROLLOUTS|FRACTION)S? = ", source, flags=re.MULTILINE)
+
+
+def test_without_chromium_the_pages_bring_their_own_mathjax(tmp_path):
+    if report.mathjax_dir() is None:
+        pytest.skip("jupyter-server-mathjax is not installed (pip install -r requirements.txt)")
+    folder = report.copy_mathjax(tmp_path)
+    page = report.answers_html("# T\n\n$$a^2$$\n", {}, f"{report.MATHJAX_COPY}/MathJax.js")
+    source = re.search(r'<script src="([^"]+)"', page).group(1)
+    assert source.startswith("mathjax/MathJax.js?config=")
+    config = source.split("config=")[1].split(",")[0]
+    assert (folder / "MathJax.js").is_file() and (folder / "config" / f"{config}.js").is_file()
+    assert any((folder / "fonts" / "HTML-CSS" / "STIX-Web" / "woff").glob("*.woff"))
+
+
+def test_bad_out_dirs_are_refused(tmp_path, capsys):
+    not_a_folder = tmp_path / "report.txt"
+    not_a_folder.write_text("a file")
+    assert report.main([str(not_a_folder)]) == 1
+    error = capsys.readouterr().err
+    assert "exists and is not a directory" in error and str(not_a_folder) in error
+    assert not_a_folder.read_text() == "a file"
+    with pytest.raises(report.ReportError, match="cannot create OUT_DIR"):
+        report.check_out_dir(not_a_folder / "report")
+
+
+# --- part 2: one run of the command ----------------------------------------------------------------
 
 
 @pytest.fixture(scope="module")
-def report_and_answers(tmp_path_factory):
-    """Run the command as a student would, into a folder that does not exist yet; while it runs
-    (in its own process and kernels), compute the answers here for the tests to compare with."""
+def report_run(tmp_path_factory):
+    """Run the command as a student would, from another folder, into a folder that does not exist yet."""
     out_dir = tmp_path_factory.mktemp("report") / "homework1-report"
-    command = [sys.executable, "-m", "hwtools.report", str(out_dir)]
-    with subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=tmp_path_factory.getbasetemp()
-    ) as process:
-        try:
-            answers = report.compute_answers()
-            stdout, stderr = process.communicate(timeout=REPORT_TIMEOUT)
-        except BaseException:
-            process.kill()
-            process.communicate()
-            raise
-    assert process.returncode == 0, f"the report failed:\n{stdout}\n{stderr}"
-    return out_dir, stdout, answers
-
-
-@pytest.fixture(scope="module")
-def report_run(report_and_answers):
-    out_dir, stdout, _ = report_and_answers
-    return out_dir, stdout
+    command = [sys.executable, "-m", "hwtools.report", str(out_dir), "--name", STUDENT_NAME]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=REPORT_TIMEOUT, cwd=tmp_path_factory.getbasetemp())
+    assert done.returncode == 0, f"the report failed:\n{done.stdout}\n{done.stderr}"
+    return out_dir, done.stdout
 
 
 @pytest.fixture(scope="module")
@@ -59,36 +231,72 @@ def answers_md(out_dir):
     return (out_dir / report.ANSWERS_MD).read_text(encoding="utf-8")
 
 
+def _output_text(page):
+    """What the executed notebook printed: the text of its output areas."""
+    blocks = re.findall(r'<div class="jp-RenderedText[^"]*"[^>]*>\s*<pre>(.*?)</pre>', page, flags=re.DOTALL)
+    return "\n".join(html.unescape(re.sub(r"<[^>]+>", "", block)) for block in blocks)
+
+
 @pytest.fixture(scope="module")
-def answers(report_and_answers):
-    return report_and_answers[2]
+def printed(out_dir):
+    """{notebook file name: the text its cells printed when the report executed it}."""
+    return {name: _output_text((out_dir / name.replace(".ipynb", ".html")).read_text(encoding="utf-8"))
+            for name in report.NOTEBOOKS}
 
 
-def test_progress_is_shown(report_run):
+@pytest.fixture(scope="module")
+def pdf(report_run):
+    out_dir, stdout = report_run
+    if report.chromium_path() is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("Chromium is missing in CI, so answers.pdf was not printed (.ci/run installs Debian's chromium)")
+        assert "PDF: SKIPPED" in stdout
+        pytest.skip("Chromium is not installed (apt-get install chromium): answers.pdf is not printed here")
+    if shutil.which("pdftotext") is None or shutil.which("pdftoppm") is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("poppler-utils is missing in CI, so answers.pdf cannot be checked (.ci/run must install it)")
+        pytest.skip("poppler-utils is not installed (apt-get install poppler-utils): the PDF cannot be read here")
+    path = out_dir / report.ANSWERS_PDF
+    assert path.read_bytes().startswith(b"%PDF")
+    pages = subprocess.run(["pdftotext", "-layout", str(path), "-"], capture_output=True, text=True, check=True).stdout
+    return path, pages.split("\f")[:-1]
+
+
+def test_progress_says_what_was_read_from_each_kernel(report_run):
     _, stdout = report_run
-    for notebook_index in (1, 2):
-        assert f"notebook {notebook_index}/2: executing" in stdout
-        assert f"notebook {notebook_index}/2: done" in stdout
-    assert "answers: written" in stdout
-    assert "report complete" in stdout
+    for index, name in enumerate(report.NOTEBOOKS, start=1):
+        assert f"notebook {index}/2: executing {name}" in stdout
+        assert f"read {', '.join(report.NOTEBOOK_VARIABLES[name])} from its kernel" in stdout
+    assert "answers: written" in stdout and "report complete" in stdout
+    assert "WARNING" not in stdout and "NOT TYPESET" not in stdout
+
+
+def _assert_reads_offline(page, name):
+    assert page.lstrip().lower().startswith("<!doctype html>"), name
+    assert "$$" not in page, f"{name}: raw TeX left"
+    assert "Math Processing Error" not in page, name
+    assert 'class="MathJax"' in page, f"{name}: no typeset formula"
+    assert "<script" not in page, f"{name}: a script is left (the saved page needs none)"
+    assert "file://" not in page, f"{name}: refers to a file of this machine"
+    assert not re.search(r"""(?:<link[^>]*href|src)=["']?https?:|url\(["']?https?:""", page), f"{name}: loads from the network"
 
 
 @pytest.mark.parametrize("notebook", report.NOTEBOOKS)
-def test_executed_notebook_as_html(out_dir, notebook):
+def test_executed_notebook_as_html_reads_offline(out_dir, notebook):
     page = (out_dir / notebook.replace(".ipynb", ".html")).read_text(encoding="utf-8")
-    assert page.lstrip().lower().startswith("<!doctype html>")
     title = report.notebook_title(report.NOTEBOOK_DIR / notebook)
     assert title in page or html.escape(title) in page, f"the title {title!r} is not in the HTML"
-    # Executed with inline figures (MPLBACKEND unset in the kernel): the figures are embedded.
-    assert "data:image/png;base64," in page
+    assert "data:image/png;base64," in page  # executed with inline figures
     assert "Traceback" not in page
+    _assert_reads_offline(page, notebook)
 
 
 @pytest.mark.parametrize("name", report.FIGURES)
-def test_figure_png(out_dir, name):
+def test_figure_png_is_the_width_of_the_page(out_dir, name):
     data = (out_dir / name).read_bytes()
     assert data.startswith(PNG_SIGNATURE), f"{name} is not a PNG"
-    assert len(data) > 5_000, f"{name} is suspiciously small ({len(data)} bytes)"
+    width = int.from_bytes(data[16:20], "big")
+    assert width == round(PRINT_WIDTH * report.FIGURE_DPI), f"{name} is {width} px wide"
 
 
 def test_answers_md_links_every_figure(answers_md, out_dir):
@@ -97,160 +305,147 @@ def test_answers_md_links_every_figure(answers_md, out_dir):
     assert all((out_dir / name).is_file() for name in linked)
 
 
-@pytest.mark.browser
-def test_answers_pdf(report_run):
-    out_dir, stdout = report_run
-    if report.chromium_path() is None:
-        if os.environ.get("CI") == "true":
-            pytest.fail("Chromium is missing in CI, so answers.pdf was not printed (.ci/run installs Debian's chromium)")
-        assert "PDF: SKIPPED" in stdout
-        pytest.skip("Chromium is not installed (apt-get install chromium): answers.pdf is not printed here")
-    data = (out_dir / report.ANSWERS_PDF).read_bytes()
-    assert data.startswith(b"%PDF"), "answers.pdf is not a PDF"
-    assert len(data) > 50_000, "answers.pdf should embed the five figures"
+def test_answers_html_reads_offline_with_the_figures_inline(out_dir):
+    page = (out_dir / report.ANSWERS_HTML).read_text(encoding="utf-8")
+    _assert_reads_offline(page, report.ANSWERS_HTML)
+    assert page.count('<div class="figure"><svg') == len(report.FIGURES)
+    assert len(re.findall(rf'<svg [^>]*width="{PRINT_WIDTH * 72:g}pt"', page)) == len(report.FIGURES)
+    assert STUDENT_NAME in page
 
 
-# --- the numbers in answers.md --------------------------------------------------------------
+# --- the numbers: the notebooks' own, printed the same way ---------------------------------------------
 
 
-def find(pattern, text):
-    match = re.search(pattern, text, flags=re.MULTILINE)
-    assert match, f"answers.md has no line matching {pattern!r}"
-    return match.groups()
+def _bullet(answers_md, label):
+    """The value of answers.md's line '- label: value': the bold part if there is one, else the whole rest."""
+    match = re.search(rf"^- {re.escape(label)}: (.+)$", answers_md, flags=re.MULTILINE)
+    assert match, f"answers.md has no line '- {label}: ...'"
+    bold = re.match(r"\*\*(.+?)\*\*", match.group(1))
+    return bold.group(1) if bold else match.group(1)
 
 
-def floats(text):
-    return [float(value.replace("\u2212", "-")) for value in re.split(r",\s*", text.strip())]
+# How each notebook prints the numbers answers.md gives (label -> the print line): the same format in both.
+PRINTED_AS = {
+    report.P1_NOTEBOOK: {
+        "median reward": 'print(f"median reward: {np.median(random_rewards):.1f}")',
+        "learning rate": 'print(f"learning rate: {learning_rate:g}")',
+        "reward per iteration": 'print("reward per iteration:", ", ".join(f"{reward:.1f}" for reward in run.rewards))',
+        "converged (500 from then on) at iteration": 'print("converged (500 from then on) at iteration:", converged_at)',
+        "final parameters": 'print("final parameters: [" + ", ".join(f"{value:.3f}" for value in run.policy.params) + "]")',
+    },
+    report.P2_NOTEBOOK: {
+        "data": 'print(f"data: {data.source}")',
+        "final train accuracy": 'print(f"final train accuracy: {train_accuracies[-1]:.3f}")',
+        "test accuracy": 'print(f"test accuracy: {test_accuracy:.3f}")',
+        "first iteration with train accuracy above 99%": 'print(f"first iteration with train accuracy above 99%: {first_above_99}")',
+    },
+}
 
 
-def test_hand_tuning_table(answers_md, answers):
-    for entry in answers["p1_hand_tuning"]["tried"]:
-        params, behaviour, rewards = find(rf"^\| {re.escape(entry['name'])} \| \(([^)]*)\) \| (.+?) \| ([\d, ]+) \|$", answers_md)
-        assert floats(params) == entry["params"]
-        assert behaviour == entry["behaviour_seed_0"]
-        assert [int(value) for value in floats(rewards)] == entry["rewards"]
-
-
-def test_random_policy_numbers(answers_md, answers):
-    percent, num_at_max, num_policies = find(
-        r"Percentage of the random policies that reached the maximum reward of 500: \*\*([\d.]+)%\*\* \((\d+) of (\d+)\)", answers_md
+@pytest.mark.parametrize("notebook, label", [(notebook, label) for notebook in PRINTED_AS for label in PRINTED_AS[notebook]])
+def test_numbers_are_given_as_the_notebook_prints_them(answers_md, printed, notebook, label):
+    value = _bullet(answers_md, label)
+    assert re.search(rf"^{re.escape(label)}:\s+{re.escape(value)}$", printed[notebook], flags=re.MULTILINE), (
+        f"{notebook} does not print '{label}: {value}' as answers.md gives it; print it with {PRINTED_AS[notebook][label]}"
     )
-    expected = answers["p1_random_policies"]
-    assert float(percent) == expected["percent_at_max"]
-    assert int(num_at_max) == expected["num_at_max"]
-    assert int(num_policies) == expected["num_policies"] == 1000
 
 
-def test_training_numbers(answers_md, answers):
-    expected = answers["p1_training"]
-    (learning_rate,) = find(r"^- Learning rate: \*\*([^*]+)\*\*", answers_md)
-    assert float(learning_rate) == expected["learning_rate"]
-    (params,) = find(r"^- Final policy parameters: \*\*\[([^\]]+)\]\*\*", answers_md)
-    assert floats(params) == pytest.approx(expected["final_params"], abs=5e-5)
-    (converged_at,) = find(r"at iteration: \*\*(\d+)\*\*", answers_md)
-    assert int(converged_at) == expected["converged_at"]
-    (rewards,) = find(r"^- Reward per iteration .*?: ([\d., ]+)$", answers_md)
-    assert floats(rewards) == pytest.approx(expected["rewards"])
+def test_random_policy_share_and_sweep_are_the_notebooks(answers_md, printed):
+    sentence = re.search(r"^- (\d+ of \d+ random policies reached the maximum reward of 500): \*\*([\d.]+%)\*\*$", answers_md,
+                         flags=re.MULTILINE)
+    assert sentence and f"{sentence.group(1)}: {sentence.group(2)}" in printed[report.P1_NOTEBOOK]
+    rates = re.search(r"^\| learning rate \| (.+) \|$", answers_md, flags=re.MULTILINE).group(1).split(" | ")
+    shares = re.search(r"^\| converged \| (.+) \|$", answers_md, flags=re.MULTILINE).group(1).split(" | ")
+    for rate, share in zip(rates, shares, strict=True):
+        assert re.search(rf"learning rate {re.escape(rate)}:\s+{re.escape(share)} of", printed[report.P1_NOTEBOOK])
 
 
-def test_learning_rate_sweep_table(answers_md, answers):
-    expected = answers["p1_learning_rate_sweep"]
-    (rates,) = find(r"^\| learning rate \| (.+) \|$", answers_md)
-    (fractions,) = find(r"^\| converged \| (.+) \|$", answers_md)
-    assert [float(value) for value in rates.split(" | ")] == pytest.approx(expected["learning_rates"], rel=0.05)
-    assert [float(value.rstrip("%")) / 100 for value in fractions.split(" | ")] == pytest.approx(expected["converged_fraction"], abs=0.005)
+def test_hand_tuning_table_is_the_notebooks_tried(answers_md, out_dir):
+    notebook_page = html.unescape(re.sub(r"<[^>]+>", "", (out_dir / f"{Path(report.P1_NOTEBOOK).stem}.html").read_text()))
+    rows = re.findall(r"^\| (.+?) \| \(([^)]*)\) \| .+? \| ([\d, ]+) \|$", answers_md, flags=re.MULTILINE)
+    assert rows, "answers.md has no 1.1.2 table"
+    for name, params, rewards in rows:
+        assert name in notebook_page, f"{name!r} is not a name of the notebook's tried"
+        params = [float(value) for value in params.split(", ")]
+        expected = [int(run_policy(CartPoleLinearPolicy(params), seed=seed)) for seed in settings.HAND_TUNING_SEEDS]
+        assert [int(value) for value in rewards.split(", ")] == expected
 
 
-def test_logistic_regression_numbers(answers_md, answers):
-    expected = answers["p2_results"]
-    (source,) = find(r"^- Data used: \*\*([^*]+)\*\*", answers_md)
-    assert source == expected["data_source"]
-    (train,) = find(r"^- Final train accuracy: \*\*([\d.]+)\*\*", answers_md)
-    (test,) = find(r"^- Test accuracy: \*\*([\d.]+)\*\*", answers_md)
-    (first,) = find(r"^- First iteration with train accuracy above 99%: \*\*(\d+|never)\*\*", answers_md)
-    assert float(train) == pytest.approx(expected["final_train_accuracy"], abs=5e-5)
-    assert float(test) == pytest.approx(expected["test_accuracy"], abs=5e-5)
-    assert (None if first == "never" else int(first)) == expected["first_iteration_above_99"]
+def test_the_derivation_is_the_notebooks(answers_md):
+    stored = nbformat.read(report.NOTEBOOK_DIR / report.P2_NOTEBOOK, as_version=4)
+    derivation = report.derivation_markdown(stored)
+    assert derivation and derivation in answers_md
 
 
-def test_answers_are_the_library_numbers(answers):
-    """compute_answers() against the library called directly, the way the notebooks call it."""
-    from hwlib import (
-        MultiClassLogisticRegressionClassifier,
-        accuracy,
-        first_iteration_above,
-        load_food_cutting,
-        random_policy_rewards,
-        train_cartpole_policy,
-        train_test_split,
-    )
-    from hwlib import policy_search
-
-    _, rewards = random_policy_rewards(num_policies=1000, seed=0)
-    assert answers["p1_random_policies"]["percent_at_max"] == round(100 * np.mean(rewards == 500), 1)
-
-    run = train_cartpole_policy(
-        num_training_iterations=20, num_rollouts_per_eval=20, learning_rate=policy_search.DEFAULT_LEARNING_RATE, seed=0
-    )
-    training = answers["p1_training"]
-    assert training["learning_rate"] == policy_search.DEFAULT_LEARNING_RATE
-    assert training["final_params"] == pytest.approx(run.policy.params, abs=5e-5)
-    assert training["converged_at"] == policy_search.iterations_to_converge(run.rewards)
-    assert training["rewards"] == pytest.approx(run.rewards)
-
-    data = load_food_cutting()
-    X_train, X_test, y_train, y_test = train_test_split(data.features, data.labels, test_fraction=0.3, seed=0)
-    model = MultiClassLogisticRegressionClassifier(n_features=X_train.shape[1], n_classes=len(data.names))
-    train_accuracies = model.fit(X_train, y_train, learning_rate=0.1, n_iters=100)
-    food = answers["p2_results"]
-    assert food["data_source"] == data.source
-    assert food["final_train_accuracy"] == pytest.approx(train_accuracies[-1], abs=5e-5)
-    assert food["test_accuracy"] == pytest.approx(accuracy(y_test, model.predict(X_test)), abs=5e-5)
-    assert food["first_iteration_above_99"] == first_iteration_above(train_accuracies, 0.99)
+# --- the PDF -----------------------------------------------------------------------------------------
 
 
-# --- bad arguments: no run needed -----------------------------------------------------------
+def _ink_rows(pdf_path, tmp_path):
+    """Per page, whether each pixel row of the printable area (inside the margins) has ink; from pdftoppm renders."""
+    subprocess.run(["pdftoppm", "-gray", "-r", "30", str(pdf_path), str(tmp_path / "page")], check=True)
+    pages = []
+    for path in sorted(tmp_path.glob("page-*.pgm"), key=lambda path: int(path.stem.split("-")[1])):
+        data = path.read_bytes()
+        _, width, height, _, pixels = re.match(rb"(P5)\s+(\d+)\s+(\d+)\s+(\d+)\s(.*)", data, flags=re.DOTALL).groups()
+        image = np.frombuffer(pixels, dtype=np.uint8).reshape(int(height), int(width))
+        top, bottom = round(int(height) * 18 / 297), round(int(height) * (297 - 16) / 297)
+        pages.append((image[top:bottom] < 200).any(axis=1))
+    return pages
 
 
-def test_out_dir_that_is_a_file_is_refused(tmp_path, capsys):
-    not_a_folder = tmp_path / "report.txt"
-    not_a_folder.write_text("a file")
-    assert report.main([str(not_a_folder)]) == 1
-    error = capsys.readouterr().err
-    assert "exists and is not a directory" in error and str(not_a_folder) in error
-    assert not_a_folder.read_text() == "a file"
+def test_pdf_pages_are_numbered_and_carry_the_name(pdf):
+    _, pages = pdf
+    assert 3 <= len(pages) <= 6, f"{len(pages)} pages"
+    for number, text in enumerate(pages, start=1):
+        assert f"page {number} of {len(pages)}" in text
+        assert f"{report.NAME_LABEL} {STUDENT_NAME}" in text
+    assert "Robot Autonomy — Homework 1: answers" in pages[0]
 
 
-def test_out_dir_under_a_file_is_refused(tmp_path):
-    blocker = tmp_path / "blocker"
-    blocker.write_text("")
-    with pytest.raises(report.ReportError, match="cannot create OUT_DIR"):
-        report.check_out_dir(blocker / "report")
+def test_pdf_has_no_blank_half_pages(pdf, tmp_path):
+    path, _ = pdf
+    pages = _ink_rows(path, tmp_path)
+    for number, rows in enumerate(pages, start=1):
+        inked = np.flatnonzero(rows)
+        assert inked.size, f"page {number} is empty"
+        if number < len(pages):
+            blank_below = 1 - (inked[-1] + 1) / rows.size
+            assert blank_below < 1 / 3, f"page {number}: the bottom {blank_below:.0%} is blank"
 
 
-def _stored_text(notebook_name):
-    """Every printed line of a notebook as it is stored in the kit."""
-    notebook = nbformat.read(report.NOTEBOOK_DIR / notebook_name, as_version=4)
-    return "\n".join(output.get("text", "") for cell in notebook.cells if cell.cell_type == "code" for output in cell.outputs)
+def _words(text):
+    return " ".join(text.split())
 
 
-def test_report_settings_match_the_stored_p1_notebook(answers):
-    # The report repeats the notebook's settings; this catches one of them changing alone.
-    text = _stored_text("p1_cartpole_finite_difference.ipynb")
-    random_policies, training = answers["p1_random_policies"], answers["p1_training"]
-    assert f"{random_policies['num_at_max']} of {random_policies['num_policies']} random policies" in text
-    assert f"learning rate: {training['learning_rate']}" in text
-    assert f"converged (500 from then on) at iteration: {training['converged_at']}" in text
-    assert f"final parameters: {np.round(training['final_params'], 3).tolist()}" in text
-    for rate, fraction in zip(answers["p1_learning_rate_sweep"]["learning_rates"], answers["p1_learning_rate_sweep"]["converged_fraction"]):
-        assert f"learning rate {rate:.1e}: {fraction:4.0%} of 20 seeds" in text
+def test_pdf_typesets_the_derivation(pdf):
+    _, pages = pdf
+    text = _words(" ".join(pages))
+    assert "$" not in text and "\\frac" not in text and "\\tilde" not in text and "Math Processing Error" not in text
+    stored = nbformat.read(report.NOTEBOOK_DIR / report.P2_NOTEBOOK, as_version=4)
+    prose = re.sub(r"\$\$.*?\$\$|\$[^$]*\$", "\n", report.derivation_markdown(stored), flags=re.DOTALL)
+    pieces = [_words(piece.replace("**", "")) for piece in re.split(r"[\n.:;,]", prose)]
+    pieces = [piece for piece in pieces if len(piece.split()) >= 3]
+    assert pieces, "the derivation has no prose to look for"
+    missing = [piece for piece in pieces if piece not in text]
+    assert not missing, f"not in the PDF: {missing}"
 
 
-def test_report_settings_match_the_stored_p2_notebook(answers):
-    results = answers["p2_results"]
-    if results["data_source"] != "synthetic stand-in":
-        pytest.skip("the stored notebook was run on the stand-in; this machine has the course's file")
-    text = _stored_text("p2_food_cutting_logistic_regression.ipynb")
-    assert f"final train accuracy: {results['final_train_accuracy']:.3f}" in text
-    assert f"test accuracy:        {results['test_accuracy']:.3f}" in text
-    assert f"first iteration with train accuracy above 99%: {results['first_iteration_above_99']}" in text
+def test_pdf_figures_carry_their_labels(pdf, answers_md):
+    _, pages = pdf
+    text = _words(" ".join(pages))
+    share = re.search(r"^- (\d+) of (\d+) random policies reached the maximum reward of 500: \*\*([\d.]+%)\*\*", answers_md,
+                      flags=re.MULTILINE).groups()
+    converged = _bullet(answers_md, "converged (500 from then on) at iteration")
+    source = _bullet(answers_md, "data")
+    for label in (
+        f"reward 500: {share[0]} of {share[1]} ({share[2]})",
+        f"deadline: iteration {settings.CONVERGENCE_DEADLINE}",
+        f"converged at iteration {converged}",
+        "Learning-rate sweep",
+        "chosen learning rate",
+        f"deadline: iteration {settings.TARGET_ITERATIONS}",
+        "Confusion matrix of the test set",
+    ):
+        assert label in text, f"{label!r} is not in the PDF"
+    labels = re.findall(rf"data: {re.escape(source)}(?! —)", text)  # the figures' labels, not answers.md's line
+    assert len(labels) == 2, "each problem 2 figure says which data it came from"
