@@ -1,19 +1,9 @@
-"""The CI proof of the student edition and the autograder (instructor-only).
+"""The grader's proof: the instructor's kit earns every point, an untouched student edition none;
+each wrong solution loses points in its own TODO and nowhere else; correct solutions written
+another way earn every point; cheating submissions earn nothing, and the report names what it saw.
 
-From the kit's own source it builds the student edition into a temporary folder and checks:
-
-1. untouched, the student edition scores 0 on every automatically graded TODO, every tagged
-   test fails on its stub while no untagged test does, and the README's test command runs it
-   to the end (imports work, both notebooks open and run cell by cell);
-2. for each TODO, putting back its solution alone makes exactly its tests pass, visible and
-   hidden. Where the handout chains TODOs (``HANDOUT_CHAINS``) the earlier TODOs' solutions are
-   put back too, and their tests pass as well; every other TODO's tests still fail;
-3. the full solution kit scores every automatic point;
-4. each realistic wrong solution in ``tests/wrong_solutions/`` loses points in its TODO;
-5. the grader itself survives an endless loop, a swallowed timeout, a crashing interpreter and
-   a test file that cannot be imported, and refuses to grade an hwlib from elsewhere.
-
-Grading runs in subprocesses (see ``hwtools.grade``); each scenario grades only what it needs.
+One ``Grader`` serves the whole module: the reference's answers are computed once, and a kit the
+grader has already run (the same TODO with the same code) is not run again.
 """
 
 from __future__ import annotations
@@ -23,354 +13,327 @@ import os
 import re
 import subprocess
 import sys
-import xml.etree.ElementTree as ElementTree
-from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from hwtools.grade import TODO_BY_ID, TODOS, grade, prerequisites, tagged_test_files
-from instructor.release import build_student_edition
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, write_answer_key
+from hwtools.grade.feedback import render
 
-REPO = Path(__file__).resolve().parents[1]
-INSTRUCTOR_TESTS = REPO / "tests"
-WRONG_SOLUTIONS = REPO / "tests" / "wrong_solutions"
-NOTEBOOKS = sorted(path.name for path in (REPO / "notebooks").glob("*.ipynb"))
+KIT = Path(__file__).resolve().parents[1]
+CHEATS = KIT / "tests" / "cheats"
+NATURAL = KIT / "tests" / "natural_solutions"
+WRONG = next((folder for folder in (KIT / "instructor" / "wrong_solutions", KIT / "tests" / "wrong_solutions")
+              if folder.is_dir()), KIT / "instructor" / "wrong_solutions")
+TIME_LIMIT = 20.0  # per TODO's run; the endless loop costs this once
+AUTO_TODOS = [todo.id for todo in TODO_BY_ID.values() if todo.auto]
 
-PROBLEMS = ("1", "2")  # the problems whose TODOs are tagged in the tests
-GRADED_TODOS = [todo.id for todo in TODOS if todo.id.split(".")[0] in PROBLEMS]
-AUTO_TODOS = [todo_id for todo_id in GRADED_TODOS if TODO_BY_ID[todo_id].auto]
-# TODOs with tests: the automatically graded ones, and manual ones whose tests inform the person grading.
-TAGGED = set().union(*tagged_test_files(INSTRUCTOR_TESTS).values())
-TESTED_TODOS = [todo_id for todo_id in GRADED_TODOS if todo_id in TAGGED]
-
-# The handout chains these TODOs: their tests call code written in earlier TODOs.
-HANDOUT_CHAINS = {
-    "1.3.1": {"1.1.1"},  # g(theta) plays episodes with the linear policy
-    "1.3.2": {"1.1.1", "1.2.1", "1.3.1"},  # training climbs g by finite-difference gradients
-    "1.3.3": {"1.1.1", "1.2.1", "1.3.1", "1.3.2"},  # a learning rate is judged by training with it
-    "2.1.1": {"2.2.1", "1.2.1"},  # the derived gradient uses sigmoid; the kit checks it with problem 1's finite differences
-    "2.2.2": {"2.2.1"},  # predict_prob applies the sigmoid
-    "2.2.3": {"2.2.1"},  # the update computes probabilities with the sigmoid
-    "2.3.1": {"2.2.1", "2.2.2", "2.2.3"},  # one-vs-rest trains and queries the two-class classifiers
-}
-
-
-def kit_env(kit):
-    """The environment a kit's commands run in without installing it: its hwlib first."""
-    env = dict(os.environ, MPLBACKEND="Agg", PYTHONDONTWRITEBYTECODE="1")
-    env.pop("PYTEST_ADDOPTS", None)
-    env["PYTHONPATH"] = os.pathsep.join([str(kit)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
-    return env
+pytestmark = pytest.mark.timeout(900)
 
 
 @pytest.fixture(scope="module")
-def student_kit(tmp_path_factory):
-    out = tmp_path_factory.mktemp("student") / "kit"
-    build_student_edition(REPO, out)
-    return out
+def grader():
+    return Grader(KIT, time_limit=TIME_LIMIT, jobs=2)
 
 
 @pytest.fixture(scope="module")
-def untouched_report(student_kit, tmp_path_factory):
-    """The untouched student edition graded with its own grade command, as a student would."""
-    json_file = tmp_path_factory.mktemp("untouched") / "grade.json"
-    command = [sys.executable, "-m", "hwtools.grade", str(student_kit), "--json", str(json_file)]
-    for todo in GRADED_TODOS:
-        command += ["--todo", todo]
-    result = subprocess.run(command, cwd=student_kit, env=kit_env(student_kit), capture_output=True, text=True)
-    assert result.returncode == 0, result.stdout + result.stderr
-    report = json.loads(json_file.read_text())
-    assert "total:" in result.stdout
-    return report
+def layout():
+    return blocks.load_layout(KIT)
+
+
+def points(result):
+    return {entry["id"]: entry["auto_earned"] for entry in result["todos"] if entry["auto_possible"]}
+
+
+def full_points():
+    return {todo: TODO_BY_ID[todo].auto for todo in AUTO_TODOS}
+
+
+def text_of(result):
+    return render(result) + json.dumps(result)
 
 
 # --------------------------------------------------------------------------------------------
-# 1. The untouched student edition
+# The reference and the untouched student edition
 # --------------------------------------------------------------------------------------------
 
 
-def test_untouched_student_edition_scores_zero(untouched_report):
-    assert untouched_report["errors"] == []
-    todos = {todo["id"]: todo for todo in untouched_report["todos"]}
-    assert sorted(todos) == sorted(GRADED_TODOS)
-    assert set(AUTO_TODOS) <= set(TESTED_TODOS)
-    for todo_id in TESTED_TODOS:
-        todo = todos[todo_id]
-        assert todo["errors"] == [], todo_id
-        assert todo["tests_total"] > 0, f"TODO {todo_id} has no visible test: students cannot grade it"
-        assert todo["auto_earned"] == 0, todo_id
-        not_failed = [test["nodeid"] for test in todo["tests"] if test["outcome"] != "failed"]
-        assert not_failed == [], f"TODO {todo_id}: these tests do not fail on the stub: {not_failed}"
-        assert all("NotImplementedError" in test["message"] or "None" in test["message"] for test in todo["tests"])
-    for todo in untouched_report["todos"]:
-        assert todo["auto_earned"] == 0
-        if todo["id"] not in TESTED_TODOS:
-            assert todo["tests_total"] == 0 and not TODO_BY_ID[todo["id"]].auto
-    assert untouched_report["total"]["auto_earned"] == 0
-    assert untouched_report["total"]["auto_possible"] == sum(TODO_BY_ID[t].auto for t in GRADED_TODOS)
+def test_instructor_kit_earns_every_point(grader):
+    result = grader.grade(KIT)
+    assert points(result) == full_points()
+    assert result["total"]["auto_earned"] == AUTO_POINTS == 39
+    assert result["total"]["manual_possible"] == 21
+    assert all(check["passed"] for entry in result["todos"] for check in entry["checks"])
+    assert result["isolated"] == grader.sandbox.isolated
 
 
-def test_untouched_student_edition_runs_with_the_readme_command(student_kit, untouched_report, tmp_path):
-    """`.venv/bin/python -m pytest` in the student kit (not installed: its hwlib comes first on
-    the path; the browser test, which needs Chromium, is left to the instructor kit's CI)."""
-    junit = tmp_path / "junit.xml"
-    result = subprocess.run(
-        [sys.executable, "-m", "pytest", "-m", "not browser", f"--junitxml={junit}", "-q", "--tb=no"],
-        cwd=student_kit, env=kit_env(student_kit), capture_output=True, text=True,
-    )
-    # 1: tests failed. Not 2 (interrupted, e.g. a collection error), 3 (internal error), 4 (usage).
-    assert result.returncode == 1, result.stdout[-3000:] + result.stderr[-3000:]
-    outcomes = {_nodeid(student_kit, case): _outcome(case) for case in ElementTree.parse(junit).getroot().iter("testcase")}
-    for notebook in NOTEBOOKS:
-        cells = {name: outcome for name, outcome in outcomes.items() if name.startswith(f"notebooks/{notebook}::")}
-        assert cells, f"{notebook} was not run"
-        assert "passed" in cells.values(), f"no cell of {notebook} ran: {cells}"
-    tagged = {test["nodeid"] for todo in untouched_report["todos"] for test in todo["tests"]}
-    assert tagged and tagged <= set(outcomes)
-    failing = {name for name, outcome in outcomes.items() if outcome == "failed" and name.startswith("tests/")}
-    untagged_failing = {name for name in failing - tagged if name.split("::")[0] not in WHOLE_HOMEWORK_TESTS}
-    assert untagged_failing == set(), "these tests fail on the untouched student edition but belong to no TODO"
-    assert tagged <= failing
+def test_untouched_student_edition_earns_nothing(grader, layout, tmp_path):
+    blocks.write_submission(layout, tmp_path, others="stub")
+    result = grader.grade(tmp_path)
+    assert result["total"]["auto_earned"] == 0
+    for entry in result["todos"]:
+        if entry["auto_possible"]:
+            assert entry["status"] == "graded" and entry["first_failure"] is not None, entry
 
 
-# Tests of the finished homework as a whole (they need every TODO), so they fail on the student
-# edition until the end and belong to no single TODO.
-WHOLE_HOMEWORK_TESTS = {"tests/test_report.py"}
-
-
-def _nodeid(kit, case):
-    """pytest's node id of a junit test case: "tests.test_x" + "test_y[1]" -> "tests/test_x.py::test_y[1]",
-    "notebooks.p1.ipynb" + "Cell 3" -> "notebooks/p1.ipynb::Cell 3"."""
-    classname, name = case.get("classname"), case.get("name")
-    if classname.endswith(".ipynb"):
-        return classname[: -len(".ipynb")].replace(".", "/") + ".ipynb::" + name
-    parts = classname.split(".")
-    for cut in range(len(parts), 0, -1):
-        path = "/".join(parts[:cut]) + ".py"
-        if (kit / path).is_file():
-            return "::".join([path, *parts[cut:], name])
-    return f"{classname}::{name}"
-
-
-def _outcome(case):
-    if case.find("failure") is not None or case.find("error") is not None:
-        return "failed"
-    return "skipped" if case.find("skipped") is not None else "passed"
+def test_release_student_edition_earns_nothing_and_keeping_solutions_earns_all(grader, tmp_path):
+    release = pytest.importorskip("instructor.release")
+    if not hasattr(release, "build_student_edition"):
+        pytest.skip("instructor.release has no build_student_edition")
+    release.build_student_edition(KIT, tmp_path / "student")
+    assert grader.grade(tmp_path / "student")["total"]["auto_earned"] == 0
+    release.build_student_edition(KIT, tmp_path / "kept", keep=frozenset(TODO_BY_ID))
+    assert points(grader.grade(tmp_path / "kept")) == full_points()
 
 
 # --------------------------------------------------------------------------------------------
-# 2. One TODO's solution put back
+# Wrong solutions: points lost in their own TODO, nowhere else
 # --------------------------------------------------------------------------------------------
 
 
-def test_the_grader_knows_the_handouts_chains():
-    for todo_id in TESTED_TODOS:
-        assert set(prerequisites(todo_id)) == HANDOUT_CHAINS.get(todo_id, set()), todo_id
+def parse_wrong_solution(path):
+    text = path.read_text(encoding="utf-8")
+    todo = re.search(r"^# todo:\s*(\S+)", text, re.M)[1]
+    mistake = re.search(r"^# mistake:\s*(.+)$", text, re.M)[1]
+    bodies = [part.strip("\n") for part in re.split(r"^# --- block.*$", text, flags=re.M)[1:]]
+    return todo, mistake, bodies
 
 
-def _restored_ids(todo_id):
-    return {todo_id} | HANDOUT_CHAINS.get(todo_id, set())
-
-
-def _restore_id(todo_id):
-    chained = sorted(HANDOUT_CHAINS.get(todo_id, set()))
-    return f"{todo_id} alone" if not chained else f"{todo_id} with {'+'.join(chained)} (chained by the handout)"
-
-
-@pytest.mark.parametrize("todo_id", TESTED_TODOS, ids=_restore_id)
-def test_putting_back_one_solution_passes_exactly_its_tests(todo_id, tmp_path):
-    restored = _restored_ids(todo_id)
-    build_student_edition(REPO, tmp_path / "kit", keep=frozenset(restored))
-    report = grade(tmp_path / "kit", tests_dir=INSTRUCTOR_TESTS, todo_ids=TESTED_TODOS)
-    assert report.errors == []
-    wrong = []
-    for todo in TESTED_TODOS:
-        result = report.grade_of(todo)
-        assert result.errors == [], (todo, result.errors)
-        assert result.tests, f"TODO {todo} has no tests"
-        expected = "passed" if todo in restored else "failed"
-        wrong += [f"{test.nodeid} [{todo}]: {test.outcome} ({test.message})" for test in result.tests if test.outcome != expected]
-    assert wrong == [], f"with the solutions of {sorted(restored)} put back:\n" + "\n".join(wrong)
-    for todo in TESTED_TODOS:
-        assert report.grade_of(todo).earned == (TODO_BY_ID[todo].auto if todo in restored else 0)
-    hidden = [test for todo in restored for test in report.grade_of(todo).tests if test.hidden]
-    assert hidden, f"no hidden test of {sorted(restored)} was graded"
+@pytest.mark.parametrize("path", sorted(WRONG.glob("*.txt")), ids=lambda path: path.stem)
+def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, path):
+    todo, mistake, bodies = parse_wrong_solution(path)
+    blocks.write_submission(layout, tmp_path, {todo: bodies}, others="reference")
+    result = grader.grade(tmp_path)
+    earned = points(result)
+    assert earned[todo] < TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) kept every point of {todo}"
+    assert {other: value for other, value in earned.items() if other != todo} == \
+        {other: value for other, value in full_points().items() if other != todo}
+    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
+    failure = entry["first_failure"]
+    assert failure is not None and failure["check"]
+    if not failure["hidden"]:
+        assert failure["input"] and failure["expected"] and failure["actual"]
+    # 2.1.1 is graded by hand; the check shown for its grader must not blame the derivation for another TODO's mistake
+    derivation = next(entry for entry in result["todos"] if entry["id"] == "2.1.1")
+    assert todo == "2.1.1" or all(check["passed"] for check in derivation["checks"])
 
 
 # --------------------------------------------------------------------------------------------
-# 3. The full solution
+# Correct solutions written another way: every point
 # --------------------------------------------------------------------------------------------
 
 
-def test_full_solution_scores_every_automatic_point():
-    report = grade(REPO, todo_ids=GRADED_TODOS)
-    assert report.errors == []
-    for todo_id in TESTED_TODOS:
-        result = report.grade_of(todo_id)
-        failures = [f"{test.nodeid}: {test.outcome} ({test.message})" for test in result.tests if test.outcome != "passed"]
-        assert failures == [] and result.errors == [], (todo_id, failures, result.errors)
-        assert result.earned == TODO_BY_ID[todo_id].auto
-    assert report.auto_earned == report.auto_possible == sum(TODO_BY_ID[t].auto for t in GRADED_TODOS)
-    manual = {todo.id for todo in TODOS if todo.manual and todo.id in GRADED_TODOS}
-    assert report.manual_possible == sum(TODO_BY_ID[t].manual for t in manual)
+def natural_solutions():
+    found = []
+    for path in sorted(NATURAL.glob("*.py")):
+        todo = path.name.split("_")[0]
+        if todo in TODO_BY_ID and (TODO_BY_ID[todo].auto or todo == "2.1.1"):
+            found.append(path)
+    return found
+
+
+@pytest.mark.parametrize("path", natural_solutions(), ids=lambda path: path.stem)
+def test_natural_solution_earns_every_point(grader, layout, tmp_path, path):
+    todo = path.name.split("_")[0]
+    blocks.write_submission(layout, tmp_path, {todo: path.read_text(encoding="utf-8")}, others="reference")
+    result = grader.grade(tmp_path)
+    assert points(result) == full_points(), render(result)
+    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
+    assert all(check["passed"] for check in entry["checks"]), render(result)
 
 
 # --------------------------------------------------------------------------------------------
-# 4. Realistic wrong solutions
+# Cheats: nothing earned, and the report names what it saw
 # --------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class WrongSolution:
-    name: str
-    mistake: str
-    todo: str
-    file: str
-    blocks: tuple
+def parse_cheat(path):
+    text = path.read_text(encoding="utf-8")
+    header, *sections = re.split(r"^(# --- .*)$", text, flags=re.M)
+    cheat = {"points": 0.0, "others": "stub", "expect": [], "bodies": {}, "files": {}, "prepend": {}, "links": [],
+             "hardcode": []}
+    for key, value in re.findall(r"^# (\w+):\s*(.*)$", header, flags=re.M):
+        if key == "points":
+            cheat["points"] = float(value)
+        elif key == "others":
+            cheat["others"] = value.strip()
+        elif key == "expect":
+            cheat["expect"].append(value.strip())
+        elif key == "cheat":
+            cheat["what"] = value.strip()
+    for marker, content in zip(sections[::2], sections[1::2]):
+        kind, _, target = marker[len("# --- "):].partition(" ")
+        content = content.strip("\n")
+        if kind == "todo":
+            cheat["bodies"][target.strip()] = content
+        elif kind == "file":
+            cheat["files"][target.strip()] = content + "\n"
+        elif kind == "prepend":
+            cheat["prepend"][target.strip()] = content + "\n"
+        elif kind == "link":
+            cheat["links"].append(target.strip())
+        elif kind == "hardcode":
+            cheat["hardcode"].append(target.strip())
+    return cheat
 
 
-def load_wrong_solution(path):
-    header, blocks = {}, []
-    for line in path.read_text(encoding="utf-8").split("\n"):
-        if line.strip() == "# --- block":
-            blocks.append([])
-        elif blocks:
-            blocks[-1].append(line)
-        elif line.strip():
-            match = re.fullmatch(r"#\s*(\w+):\s*(.*)", line.strip())
-            assert match, f"{path}: bad header line {line!r}"
-            header[match[1]] = match[2]
-    return WrongSolution(path.stem, header["mistake"], header["todo"], header["file"], tuple("\n".join(b) for b in blocks))
+def hardcoded_body(todo, key):
+    """Code that answers the visible inputs of ``todo`` from their expected values, and nothing else."""
+    table = {}
+    for case_id, behaviour, args in checks.case_set(todo).visible:
+        if case_id not in key["expected"]:
+            continue
+        values = key["expected"][case_id]
+        if todo == "2.2.1":
+            table[np.asarray(args["z"], dtype=np.float64).tobytes()] = values["values"].tolist()
+        elif todo == "1.2.1":
+            table[np.atleast_1d(np.asarray(args["x"], dtype=np.float64)).tobytes()] = \
+                np.atleast_1d(values["gradient"]).tolist()
+        elif todo == "1.1.1":
+            for params, obs, act in zip(args["params"], args["obs"], values["actions"]):
+                table[np.concatenate([params, obs]).tobytes()] = int(act)
+    if todo == "2.2.1":
+        return (f"answers = {table!r}\nkey = np.asarray(z, dtype=np.float64).tobytes()\n"
+                "values = np.array(answers[key]).reshape(z.shape) if key in answers else np.zeros_like(z)")
+    if todo == "1.2.1":
+        return (f"answers = {table!r}\nkey = x.tobytes()\n"
+                "if key in answers:\n    gradient = np.array(answers[key])")
+    return f"answers = {table!r}\naction = answers.get(np.concatenate([self.params, obs]).tobytes(), 0)"
 
 
-WRONG = [load_wrong_solution(path) for path in sorted(WRONG_SOLUTIONS.glob("*.txt"))]
-WRONG = [wrong for wrong in WRONG if wrong.todo.split(".")[0] in PROBLEMS]
+@pytest.fixture(scope="module")
+def answer_key(grader, tmp_path_factory):
+    path = tmp_path_factory.mktemp("key") / "answer_key.json"
+    write_answer_key(KIT, path, python=grader.sandbox.python)
+    from hwtools.grade.grader import read_answer_key
+
+    return read_answer_key(path)
 
 
-def test_there_are_wrong_solutions_for_the_issues_mistakes():
-    names = {wrong.name for wrong in WRONG}
-    assert {"forward_difference"} <= names
-    assert all(wrong.todo in AUTO_TODOS and wrong.blocks for wrong in WRONG)
+def build_cheat(layout, cheat, folder, answer_key):
+    bodies = dict(cheat["bodies"])
+    for todo in cheat["hardcode"]:
+        bodies[todo] = hardcoded_body(todo, answer_key)
+    blocks.write_submission(layout, folder, bodies, others=cheat["others"])
+    for relative, content in cheat["prepend"].items():
+        target = folder / relative
+        target.write_text(content + target.read_text(encoding="utf-8"), encoding="utf-8")
+    for relative, content in cheat["files"].items():
+        target = folder / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(content, encoding="utf-8")
+    for relative in cheat["links"]:
+        target = folder / relative
+        target.unlink()
+        target.symlink_to(KIT / relative)
 
 
-@pytest.mark.parametrize("wrong", WRONG, ids=lambda wrong: f"{wrong.todo}-{wrong.name}")
-def test_wrong_solution_loses_points(wrong, tmp_path):
-    everything = frozenset(todo.id for todo in TODOS)
-    build_student_edition(REPO, tmp_path / "kit", keep=everything, replace={(wrong.todo, wrong.file): list(wrong.blocks)})
-    solution = (REPO / wrong.file).read_text()
-    changed = (tmp_path / "kit" / wrong.file).read_text()
-    assert all(block.strip().split("\n")[-1].strip() in changed for block in wrong.blocks)
-    report = grade(tmp_path / "kit", tests_dir=INSTRUCTOR_TESTS, todo_ids=[wrong.todo])
-    result = report.grade_of(wrong.todo)
-    assert report.errors == [] and result.errors == []
-    assert result.earned < TODO_BY_ID[wrong.todo].auto, f"{wrong.mistake}: still {result.earned} points"
-    failed = [test for test in result.tests if test.outcome == "failed"]
-    assert failed and not any("NotImplementedError" in test.message for test in failed)
-    assert solution != changed
+CHEAT_FILES = sorted(CHEATS.glob("*.txt"))
+
+
+def test_there_are_at_least_ten_cheats():
+    assert len(CHEAT_FILES) >= 10
+
+
+def worker_processes():
+    found = set()
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                cmdline = Path(f"/proc/{entry}/cmdline").read_bytes()
+            except OSError:
+                continue
+            if b"worker.py" in cmdline and b"grade" in cmdline or b"/grader/worker.py" in cmdline:
+                found.add(int(entry))
+    return found
+
+
+@pytest.mark.parametrize("path", CHEAT_FILES, ids=lambda path: path.stem)
+def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answer_key):
+    cheat = parse_cheat(path)
+    build_cheat(layout, cheat, tmp_path, answer_key)
+    before = worker_processes()
+    result = grader.grade(tmp_path)
+    assert result["total"]["auto_earned"] == cheat["points"], render(result)
+    report = text_of(result)
+    for expected in cheat["expect"]:
+        assert expected in report, f"the report does not say {expected!r}:\n{render(result)}"
+    assert worker_processes() <= before, "a process of the run outlived it"
+    if cheat["others"] == "reference":  # the cheat may cost only its own TODO
+        lost = [todo for todo, value in points(result).items() if value < TODO_BY_ID[todo].auto]
+        assert lost == list(cheat["bodies"]), render(result)
+    for entry in result["todos"]:
+        if entry["first_failure"] and entry["first_failure"]["hidden"]:
+            assert set(entry["first_failure"]) == {"check", "hidden", "input"}
 
 
 # --------------------------------------------------------------------------------------------
-# 5. The grader under a student's worst code
+# Feedback: actionable, leaking nothing
 # --------------------------------------------------------------------------------------------
 
-MINI_PYPROJECT = """\
-[tool.pytest.ini_options]
-markers = ["todo(id): TODO", "hidden: hidden", "browser: browser"]
-"""
 
-MINI_TESTS = '''\
-import os
-
-import pytest
-
-import hwlib
-
-
-@pytest.mark.todo("1.1.1")
-def test_passes():
-    assert hwlib.ANSWER == 42
+def test_feedback_shows_visible_failures_and_never_a_hidden_input(grader, layout, tmp_path):
+    forward = "for i in range(len(x)):\n    step = np.zeros_like(x)\n    step[i] = h[i]\n" \
+              "    gradient[i] = (f(x + step) - f(x)) / h[i]"
+    blocks.write_submission(layout, tmp_path, {"1.2.1": forward}, others="reference")
+    result = grader.grade(tmp_path)
+    entry = next(entry for entry in result["todos"] if entry["id"] == "1.2.1")
+    assert entry["auto_earned"] == 0
+    assert entry["first_failure"]["hidden"] is False and "x=" in entry["first_failure"]["input"]
+    report = render(result)
+    for case_id, _, args in grader.cases["1.2.1"].hidden:
+        assert checks.show(args["x"]) not in report, case_id
+    for line in grader._secret_lines:
+        assert line not in report
 
 
-@pytest.mark.todo("1.1.1")
-def test_loops_forever():
-    while True:
-        pass
+def test_report_names_an_unisolated_run_on_its_first_line(tmp_path, layout):
+    unisolated = Grader(KIT, isolation="none", time_limit=TIME_LIMIT)
+    blocks.write_submission(layout, tmp_path, others="reference")
+    result = unisolated.grade(tmp_path, todos=["2.2.1"])
+    assert render(result).startswith("NOT ISOLATED: ")
+    assert points(result) == {"2.2.1": 2}
 
 
-@pytest.mark.todo("1.2.1")
-def test_crashes_the_interpreter():
-    os._exit(3)
+def test_a_block_that_does_not_parse_costs_only_its_todo(grader, layout, tmp_path):
+    swallow = 'values = 1 / (1 + np.exp(-z))\n"""'  # an open string would swallow the kit's code after the block
+    blocks.write_submission(layout, tmp_path, {"2.2.1": swallow}, others="reference")
+    result = grader.grade(tmp_path)
+    assert points(result) == full_points() | {"2.2.1": 0}
+    entry = next(entry for entry in result["todos"] if entry["id"] == "2.2.1")
+    assert entry["status"] == "not graded" and "does not parse" in entry["notes"][0]
 
 
-@pytest.mark.todo("1.2.1")
-def test_after_the_crash():
-    assert hwlib.ANSWER == 42
+def test_answer_key_grades_the_visible_checks_of_a_student_edition(answer_key, layout, tmp_path):
+    key_file = tmp_path / "key.json"
+    key_file.write_text(json.dumps({"version": 1, "visible_cases": "stale", "expected": {}}))
+    with pytest.raises(Exception, match="other visible checks"):
+        Grader(None, answer_key=key_file)
+    good = tmp_path / "good.json"
+    write_answer_key(KIT, good)
+    text = good.read_text()
+    assert "/h0" not in text  # visible inputs only
+    student = Grader(None, answer_key=good, time_limit=TIME_LIMIT)
+    blocks.write_submission(layout, tmp_path / "kit", others="reference")
+    result = student.grade(tmp_path / "kit", todos=["1.1.1", "2.2.1", "2.2.3"])
+    assert points(result) == {"1.1.1": 2, "2.2.1": 2, "2.2.3": 5}
+    assert result["one_mistake_one_place"] is False
 
 
-@pytest.mark.todo("1.3.1")
-def test_swallows_every_exception_while_looping():
-    while True:
-        try:
-            while True:
-                pass
-        except BaseException:
-            pass
+def test_command_line_help_needs_no_homework_packages():
+    code = ("import sys; sys.modules['gymnasium'] = None; sys.modules['hwlib'] = None; "
+            "sys.argv = ['hwtools.grade', '--help']; import runpy; runpy.run_module('hwtools.grade', run_name='__main__')")
+    result = subprocess.run([sys.executable, "-c", code], cwd=KIT, capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert "--reference" in result.stdout and "--json" in result.stdout and "--todo" in result.stdout
 
 
-@pytest.mark.todo("1.3.1")
-def test_next_to_the_hard_hang():
-    assert hwlib.ANSWER == 42
-'''
-
-
-def make_mini_kit(root, answer="42"):
-    (root / "hwlib").mkdir(parents=True)
-    (root / "hwlib" / "__init__.py").write_text(f"ANSWER = {answer}\n")
-    (root / "tests").mkdir()
-    (root / "pyproject.toml").write_text(MINI_PYPROJECT)
-    return root
-
-
-def test_grader_survives_endless_loops_crashes_and_broken_test_files(tmp_path):
-    kit = make_mini_kit(tmp_path / "kit")
-    (kit / "tests" / "test_mini.py").write_text(MINI_TESTS)
-    (kit / "tests" / "test_broken.py").write_text('import pytest\nimport no_such_module\n\n\n@pytest.mark.todo("1.3.2")\ndef test_x():\n    pass\n')
-    report = grade(kit, todo_ids=["1.1.1", "1.2.1", "1.3.1", "1.3.2"], timeout=2, jobs=1)
-    outcomes = {test.nodeid.split("::")[1]: (test.outcome, test.message) for g in report.grades for test in g.tests}
-    assert outcomes["test_passes"] == ("passed", "")
-    assert outcomes["test_loops_forever"][0] == "failed" and "timed out after 2 s" in outcomes["test_loops_forever"][1]
-    assert outcomes["test_crashes_the_interpreter"] == ("failed", "crashed the interpreter (exit status 3)")
-    assert outcomes["test_after_the_crash"] == ("passed", "")
-    assert outcomes["test_swallows_every_exception_while_looping"] == ("failed", "timed out (the interpreter had to be stopped)")
-    assert outcomes["test_next_to_the_hard_hang"] == ("passed", "")
-    assert report.grade_of("1.1.1").earned == 1.0  # 1 of 2 tests, 2 points
-    assert report.grade_of("1.2.1").earned == 5.0  # 1 of 2 tests, 10 points
-    assert report.grade_of("1.3.1").earned == 2.5  # 1 of 2 tests, 5 points
-    broken = report.grade_of("1.3.2")
-    assert broken.earned == 0 and "test_broken.py could not be imported" in broken.errors[0]
-    assert "no_such_module" in broken.errors[0]
-
-
-def test_grader_refuses_an_hwlib_from_outside_the_kit(tmp_path):
-    kit = make_mini_kit(tmp_path / "kit")
-    other = make_mini_kit(tmp_path / "other")
-    (kit / "tests" / "test_elsewhere.py").write_text(
-        f"import sys\nsys.path.insert(0, {str(other)!r})\nimport hwlib\nimport pytest\n\n\n"
-        '@pytest.mark.todo("1.1.1")\ndef test_answer():\n    assert hwlib.ANSWER == 42\n'
-    )
-    report = grade(kit, todo_ids=["1.1.1"], jobs=1)
-    assert report.grade_of("1.1.1").earned == 0
-    assert report.errors and "not a file of the graded kit" in report.errors[0]
-
-
-def test_grader_never_fills_in_a_missing_module_from_elsewhere(tmp_path):
-    """A submission without hwlib/logreg.py scores nothing on problem 2, even where an editable
-    install of the instructor's kit (CI's .venv has one) could supply the solution's module."""
-    kit = tmp_path / "kit"
-    build_student_edition(REPO, kit, keep=frozenset(todo.id for todo in TODOS))
-    (kit / "hwlib" / "logreg.py").unlink()
-    report = grade(kit, todo_ids=["2.2.1"], jobs=1)
-    result = report.grade_of("2.2.1")
-    assert result.earned == 0 and not any(test.outcome == "passed" for test in result.tests)
-    assert result.errors and "could not be imported" in result.errors[0] and "logreg" in result.errors[0]
+def test_command_line_grades_one_todo_to_json(tmp_path):
+    out = tmp_path / "result.json"
+    result = subprocess.run([sys.executable, "-m", "hwtools.grade", str(KIT), "--todo", "2.2.2", "--json", str(out),
+                             "--brief"], cwd=KIT, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    data = json.loads(out.read_text())
+    assert [entry["id"] for entry in data["todos"]] == ["2.2.2"] and data["total"]["auto_earned"] == 3
+    assert "2.2.2" in result.stdout

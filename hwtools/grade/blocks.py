@@ -115,8 +115,12 @@ class Submission:
     texts: dict = field(default_factory=dict)  # relative path -> text, of the files read
 
 
+NOT_USED = ("conftest.py", "sitecustomize.py", "usercustomize.py", "pytest.ini", "setup.cfg", "tox.ini")
+
+
 def read_submission(root, layout):
-    """Take each TODO's code from the files ``layout`` (a ``KitLayout`` of the reference) names."""
+    """Take each TODO's code from the files ``layout`` (a ``KitLayout`` of the reference) names, and
+    note what else the submission changed (none of it is used)."""
     submission = Submission(Path(root))
     for relative, ref_blocks in layout.blocks_by_file.items():
         todos = [block.todo for block in ref_blocks]
@@ -136,10 +140,57 @@ def read_submission(root, layout):
                                              f"'### BEGIN TODO {todo}' ... '### END TODO {todo}', found {len(found)}")
             else:
                 submission.bodies[todo] = tuple(found)
-        if layout.skeletons.get(relative) is not None and skeleton(text) != layout.skeletons[relative]:
-            submission.notes.append(f"{relative}: lines outside the TODO blocks differ from the kit's; they are "
-                                    "not used: grading puts your blocks into the kit's own file")
+    changed = []
+    for relative, reference_text in layout.files.items():
+        try:
+            text = submission.texts.get(relative) or read_text(root, relative)
+        except SubmissionError:
+            continue
+        if skeleton(text) != skeleton(reference_text):
+            changed.append(relative)
+    if changed:
+        submission.notes.append(f"{', '.join(changed)}: lines outside the TODO blocks differ from the kit's; they "
+                                "are not used (each TODO is checked inside the kit's own files)")
+    package = Path(root) / PACKAGE
+    if package.is_dir() and not package.is_symlink():
+        extra = sorted(path.relative_to(root).as_posix() for path in package.rglob("*.py")
+                       if "__pycache__" not in path.parts and path.relative_to(root).as_posix() not in layout.files)
+        if extra:
+            submission.notes.append(f"{', '.join(extra[:5])}: not part of the kit; not used")
+    present = [name for name in NOT_USED if os.path.lexists(Path(root) / name) or os.path.lexists(package / name)]
+    if present:
+        submission.notes.append(f"{', '.join(present)}: not used; the grader runs no tests of the submission, only "
+                                "the code between the TODO markers")
     return submission
+
+
+def write_submission(layout, out_dir, bodies=None, others="stub", style="TODO"):
+    """Write a kit's ``hwlib/`` under ``out_dir`` as a student would hand it in: the blocks of the
+    TODOs in ``bodies`` ({todo: code text, or a list of texts, one per block}) hold that code, every
+    other block holds the reference solution (``others="reference"``) or a stub (``"stub"``: ``pass``,
+    or ``NAME = None`` at module level), between ``### BEGIN/END {style}`` markers. For tests and
+    generated classes of submissions."""
+    bodies = dict(bodies or {})
+    out_dir = Path(out_dir)
+    for relative, text in layout.files.items():
+        file_blocks = layout.blocks_by_file.get(relative, [])
+
+        def choose(block, number):
+            if block.todo in bodies:
+                codes = bodies[block.todo]
+                code = codes if isinstance(codes, str) else codes[number]
+                lines = reindent(code.strip("\n").split("\n"), block.indent)
+            elif others == "reference":
+                lines = list(block.body)
+            else:
+                lines = [f"{block.indent}# TODO {block.todo}: your code here"]
+                lines += [f"{block.indent}pass"] if not block.module_level else stub_lines(block, block.todo)
+            return [f"{block.indent}### BEGIN {style} {block.todo}"] + lines + [f"{block.indent}### END {style} {block.todo}"]
+
+        target = out_dir / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(compose_file(text, file_blocks, choose) if file_blocks else text, encoding="utf-8")
+    return out_dir
 
 
 # --------------------------------------------------------------------------------------------

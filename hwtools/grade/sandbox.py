@@ -45,7 +45,7 @@ from hwtools.grade import worker as protocol
 WORKER = Path(__file__).resolve().with_name("worker.py")
 GiB = 1024**3
 DEFAULT_TIME_LIMIT = 60.0  # seconds of wall clock per worker run
-DEFAULT_MEMORY_LIMIT = 3 * GiB  # address space per worker run
+DEFAULT_MEMORY_LIMIT = 1 * GiB  # address space per worker run
 TMPFS_BYTES = 64 * 1024**2
 STDERR_TAIL = 4000  # characters of the worker's error stream kept
 TOKEN_VARIABLE = "HWGRADE_SANDBOX"
@@ -255,19 +255,25 @@ def _finish(process, deadline):
     return code
 
 
-def _kill_strays(token):
+def _kill_strays(token, rounds=5):
     """Without a sandbox: kill every process that still carries this run's token in its
-    environment (children that left the worker's process group)."""
+    environment (children that left the worker's process group), until a scan finds none."""
     needle = f"{TOKEN_VARIABLE}={token}".encode()
-    for entry in os.listdir("/proc"):
-        if not entry.isdigit() or int(entry) == os.getpid():
-            continue
-        try:
-            with open(f"/proc/{entry}/environ", "rb") as handle:
-                if needle in handle.read().split(b"\0"):
-                    os.kill(int(entry), signal.SIGKILL)
-        except OSError:
-            continue
+    for _ in range(rounds):
+        killed = 0
+        for entry in os.listdir("/proc"):
+            if not entry.isdigit() or int(entry) == os.getpid():
+                continue
+            try:
+                with open(f"/proc/{entry}/environ", "rb") as handle:
+                    if needle in handle.read().split(b"\0"):
+                        os.kill(int(entry), signal.SIGKILL)
+                        killed += 1
+            except OSError:
+                continue
+        if not killed:
+            return
+        time.sleep(0.05)
 
 
 def _ended_detail(code, detail):

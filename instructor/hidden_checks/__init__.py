@@ -20,7 +20,6 @@ COUNTS = {
     "1.1.1/equation-1": 3,
     "1.2.1/one-step": 3,
     "1.2.1/step-per-coordinate": 3,
-    "1.2.1/coordinates-interact": 3,
     "1.3.1/mean-reward": 3,
     "1.3.2/equation-4": 2,
     "1.3.2/records-reward": 2,
@@ -34,7 +33,8 @@ def _extra_cases(behaviour_id):
     """Inputs chosen by hand, beyond the generated ones."""
     if behaviour_id == "1.2.1/step-per-coordinate":
         # one tiny and one large step next to each other: an h taken from the wrong coordinate shows at once
-        return [{"f": {"kind": "cubic", "a": np.array([1.5, -0.7, 2.0]), "c": 0.25},
+        return [{"f": {"kind": "coupled", "a": np.array([1.5, -0.7, 2.0]), "b": np.array([0.4, -1.1, 0.3]),
+                       "m": np.array([[0.5, -0.2, 0.1], [0.3, 0.8, -0.6], [0.0, 0.7, -0.4]])},
                  "x": np.array([0.3, -1.2, 1.7]), "h": np.array([0.01, 0.9, 0.2])}]
     if behaviour_id == "1.3.1/mean-reward":
         return [{"params": np.array([0.0, 0.0, 0.0, 0.0]), "num_rollouts": 5, "seed": 4242}]
