@@ -17,7 +17,6 @@ import os
 import re
 import shutil
 import stat
-import textwrap
 import tokenize
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
@@ -157,7 +156,17 @@ def read_submission(root, layout):
                        if "__pycache__" not in path.parts and path.relative_to(root).as_posix() not in layout.files)
         if extra:
             submission.notes.append(f"{', '.join(extra[:5])}: not part of the kit; not used")
-    present = [name for name in NOT_USED if os.path.lexists(Path(root) / name) or os.path.lexists(package / name)]
+    present = []
+    for name in NOT_USED:
+        for relative in (name, f"{PACKAGE}/{name}"):
+            if not os.path.lexists(Path(root) / relative):
+                continue
+            try:
+                same = read_text(root, relative) == read_text(layout.root, relative)
+            except SubmissionError:
+                same = False
+            if not same:
+                present.append(relative)
     if present:
         submission.notes.append(f"{', '.join(present)}: not used; the grader runs no tests of the submission, only "
                                 "the code between the TODO markers")
@@ -259,13 +268,21 @@ def load_layout(root):
 
 
 def reindent(body, indent):
-    """``body`` (lines) moved to ``indent``: its common indentation removed, ``indent`` put in
-    front of every non-blank line. An empty body (or comments only) becomes ``pass`` in a function."""
-    text = textwrap.dedent("\n".join(line.expandtabs(4) if line.startswith("\t") else line for line in body))
-    lines = [(indent + line) if line.strip() else "" for line in text.split("\n")]
-    while lines and not lines[-1]:
-        lines.pop()
-    return lines
+    """``body`` (lines) moved to ``indent``: the common indentation of its code lines removed (a
+    comment may stand further left), ``indent`` put in front of every non-blank line."""
+    lines = [line.expandtabs(8) if "\t" in line[:len(line) - len(line.lstrip())] else line for line in body]
+    code = [line for line in lines if line.strip() and not line.lstrip().startswith("#")]
+    common = min((len(line) - len(line.lstrip()) for line in code), default=0)
+    out = []
+    for line in lines:
+        if not line.strip():
+            out.append("")
+            continue
+        width = len(line) - len(line.lstrip())
+        out.append(indent + (line[common:] if width >= common else line.lstrip()))
+    while out and not out[-1]:
+        out.pop()
+    return out
 
 
 def _has_code(lines):
