@@ -112,6 +112,7 @@ def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, 
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
     failure = entry["first_failure"]
     assert failure is not None and failure["check"]
+    assert "NameError" not in failure.get("actual", ""), f"{path.name} no longer fits the kit's code: {failure}"
     if not failure["hidden"]:
         assert failure["input"] and failure["expected"] and failure["actual"]
     # 2.1.1 is graded by hand; the check shown for its grader must not blame the derivation for another TODO's mistake
