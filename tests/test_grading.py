@@ -324,6 +324,25 @@ def test_feedback_shows_visible_failures_and_never_a_hidden_input(grader, layout
         assert line not in report
 
 
+def test_each_todo_runs_with_the_reference_code_of_only_the_todos_its_check_needs(grader, layout):
+    reference = layout.reference_bodies()
+    solution_lines = {todo: {line.strip() for body in bodies for line in body
+                             if len(line.strip()) > 12 and not line.strip().startswith("#")}
+                      for todo, bodies in reference.items()}
+    for todo in checks.GRADED_TODOS:
+        files = blocks.composite_files(layout, {todo: ("pass",) * len(reference[todo])}, set(checks.NEEDS[todo]),
+                                       only=checks.SETTINGS_ONLY.get(todo))
+        text = "\n".join(files.values())
+        for other, lines in solution_lines.items():
+            shown = {line for line in lines if line in text}
+            if other in checks.NEEDS[todo]:
+                assert shown == lines, (todo, other)
+            else:
+                assert not shown, f"the kit of {todo} shows the solution of {other}: {shown}"
+        if todo != "1.3.3":  # the chosen learning rate (1.3.3's answer) is never in another TODO's kit
+            assert "LEARNING_RATE = None" in files["hwlib/settings.py"]
+
+
 def test_report_names_an_unisolated_run_on_its_first_line(tmp_path, layout):
     unisolated = Grader(KIT, isolation="none", time_limit=TIME_LIMIT)
     blocks.write_submission(layout, tmp_path, others="reference")

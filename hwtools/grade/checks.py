@@ -192,8 +192,8 @@ def make_eval_case(rng, variant):
 
 
 def _episodes_services(args, result):
-    if result["status"] != "ok":
-        return []
+    if result["status"] != "ok" or int(result["values"]["episodes"]) != args["num_rollouts"]:
+        return []  # judged without the reference; and a run that played thousands of episodes costs it nothing
     values = result["values"]
     return [("episode_rewards", {"params": values["episode_params"], "seeds": values["episode_seeds"]})]
 

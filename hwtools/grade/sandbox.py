@@ -66,6 +66,21 @@ class RunOutcome:
 
 
 @functools.lru_cache(maxsize=None)
+def installed_kit(python):
+    """Where ``python`` would import ``hwlib`` from outside any kit folder, if it is a copy inside
+    its own installation (``pip install .`` without ``-e``): the sandbox could read that copy."""
+    code = ("import importlib.util, os, sys; sys.path = [p for p in sys.path if p and os.path.isdir(p) and "
+            "'site-packages' in p or p.startswith(sys.base_prefix)]; spec = importlib.util.find_spec('hwlib'); "
+            "print(os.path.realpath(spec.origin) if spec and spec.origin else '')")
+    try:
+        origin = subprocess.run([python, "-I", "-c", code], capture_output=True, text=True, timeout=60,
+                                cwd="/").stdout.strip()
+    except (OSError, subprocess.TimeoutExpired):
+        return ""
+    return origin if origin and any(origin.startswith(path + os.sep) for path in python_paths(python)) else ""
+
+
+@functools.lru_cache(maxsize=None)
 def python_paths(python):
     """The folders a Python needs: its prefix (the venv), base prefix (the installation) and the
     folder of the real executable."""
@@ -125,7 +140,12 @@ def probe_isolation(python):
         reason = " ".join(result.stderr.split())[:300]
         return False, f"bwrap cannot create a sandbox here ({reason or 'exit code ' + str(result.returncode)})"
     version = subprocess.run(["bwrap", "--version"], capture_output=True, text=True).stdout.strip()
-    return True, f"{version or 'bubblewrap'}: no network, read-only Python and kit, private /tmp, /proc and users"
+    how = f"{version or 'bubblewrap'}: no network, read-only Python and kit, private /tmp, /proc and users"
+    copy = installed_kit(python)
+    if copy:
+        how += (f"; WARNING: {python} has a copy of hwlib installed at {os.path.dirname(copy)} (pip install "
+                "without -e), which the sandbox can read: reinstall with pip install -e .")
+    return True, how
 
 
 class Sandbox:
