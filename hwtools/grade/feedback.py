@@ -39,8 +39,11 @@ def render(result, details=True):
             if not entry["checks"] and not entry["notes"]:
                 continue
             lines.append("")
-            lines.append(f"{entry['id']} {entry['title']}: {_points(entry['auto_earned'])} of "
-                         f"{_points(entry['auto_possible'])} automatic point(s)")
+            if entry["auto_possible"]:
+                lines.append(f"{entry['id']} {entry['title']}: {_points(entry['auto_earned'])} of "
+                             f"{_points(entry['auto_possible'])} automatic point(s)")
+            else:
+                lines.append(f"{entry['id']} {entry['title']}: graded by hand; the check below is for the grader")
             for check in entry["checks"]:
                 mark = "pass" if check["passed"] else "FAIL"
                 inputs = f"{check['visible_inputs']} visible" + (f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else "")

@@ -106,12 +106,13 @@ def bwrap_command(python, kit_dir, worker=WORKER):
     args = ["bwrap", "--unshare-all", "--unshare-user", "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL",
             "--die-with-parent", "--new-session", "--hostname", "sandbox"]
     args += _system_binds()
+    # /tmp first: a Python installed under /tmp (a CI checkout there) is bound on top of it, not hidden by it
+    args += ["--proc", "/proc", "--dev", "/dev", "--size", str(TMPFS_BYTES), "--tmpfs", "/tmp", "--dir", "/tmp/home"]
     for path in python_paths(python):
         if not path.startswith("/usr/"):
             args += ["--ro-bind", path, path]
     venv_python = os.path.abspath(python)
     args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(worker), "/grader/worker.py",
-             "--proc", "/proc", "--dev", "/dev", "--size", str(TMPFS_BYTES), "--tmpfs", "/tmp", "--dir", "/tmp/home",
              "--chdir", "/tmp", "--clearenv"]
     for key, value in _worker_env("/tmp/home").items():
         args += ["--setenv", key, value]
