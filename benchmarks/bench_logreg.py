@@ -1,39 +1,47 @@
-"""Problem 2 benchmark: the kit's one-vs-rest fit against loops and against scikit-learn.
+"""Problem 2 benchmark: the one-vs-rest fit as students write it, against scikit-learn.
 
 Run from the kit's root, after ``pip install -r benchmarks/requirements-bench.txt``:
 
     python benchmarks/bench_logreg.py              # BLAS with its default number of threads
     python benchmarks/bench_logreg.py --threads 1  # single-threaded BLAS
 
-It uses the same data as the notebook (the course's ``data/data.npz`` if present, else the
-synthetic stand-in) and the same 70/30 split, and prints in one run:
+It uses the notebook's data (the course's ``data/data.npz`` if present, else the synthetic
+stand-in), its split and its settings (``hwlib/settings.py``: learning rate, iterations), and
+prints in one run the time of ``MultiClassLogisticRegressionClassifier.fit``
 
-| line                        | what is timed                                                    |
-|-----------------------------|------------------------------------------------------------------|
-| kit, per-class loop         | ``fit`` as the handout describes it, 70 iterations (best of 3)   |
-| kit, vectorized             | ``fit(..., vectorized=True)``, all classes per matrix product    |
-| per-sample Python loop      | the same updates summed sample by sample; 1 iteration timed, x70 |
-| scikit-learn, multinomial   | ``LogisticRegression()`` (lbfgs, L2, C=1), up to 1000 iterations  |
-| scikit-learn, one-vs-rest   | ``OneVsRestClassifier(LogisticRegression())``, same settings      |
+| line                          | the code in the TODO blocks                                                     |
+|-------------------------------|---------------------------------------------------------------------------------|
+| kit solution                  | the instructor's solutions: one matrix-vector step per class                   |
+| natural ``<todo>_<style>``    | one solution of ``tests/natural_solutions/`` in place of the kit's, the rest the kit's |
+| scikit-learn, multinomial     | ``LogisticRegression()`` (lbfgs, L2, C=1), up to 1000 iterations               |
+| scikit-learn, one-vs-rest     | ``OneVsRestClassifier(LogisticRegression())``, same settings                   |
 
-and the test accuracies. Exits with status 1 if the kit's test accuracy is more than 2 points
-below scikit-learn's.
+with the test accuracy of each. A natural solution that would take longer than ``--budget``
+seconds (the per-sample loops) is timed over its first iteration and the time multiplied by
+the number of iterations; the line says so. Exits with status 1 if a natural solution's
+predictions differ from the kit's, or if the kit's test accuracy is more than 2 points below
+scikit-learn's. Times on a shared machine are noisy: compare the lines of one run.
 """
 
 from __future__ import annotations
 
 import argparse
-import math
 import os
+import re
 import sys
 import time
+import types
 import warnings
+from pathlib import Path
 
 
 def parse_arguments():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--threads", type=int, default=None, help="BLAS threads (default: the library's own choice)")
-    parser.add_argument("--iterations", type=int, default=70, help="training iterations of the kit (default 70)")
+    parser.add_argument("--iterations", type=int, default=None, help="training iterations (default: settings.P2_NUM_ITERATIONS)")
+    parser.add_argument("--budget", type=float, default=20.0, help="seconds a natural solution may take before it is extrapolated")
+    parser.add_argument("--styles", default="2.2.1_naive,2.2.3_matrix,2.2.3_per_sample_loop,2.3.1_loop,2.3.1_two_class_fit",
+                        help="comma-separated natural solutions to time (file names without .py), or 'all'")
     return parser.parse_args()
 
 
@@ -47,14 +55,31 @@ from sklearn.exceptions import ConvergenceWarning  # noqa: E402
 from sklearn.linear_model import LogisticRegression  # noqa: E402
 from sklearn.multiclass import OneVsRestClassifier  # noqa: E402
 
-from hwlib import MultiClassLogisticRegressionClassifier, accuracy, load_food_cutting, train_test_split  # noqa: E402
+from hwlib import accuracy, load_food_cutting, settings, train_test_split  # noqa: E402
+from hwlib import logreg  # noqa: E402
 
-LEARNING_RATE = 0.1
+KIT = Path(__file__).resolve().parent.parent
+NATURAL = KIT / "tests" / "natural_solutions"
 REPEATS = 3
 ALLOWED_GAP = 0.02
 
 
-def best_time(function, repeats=REPEATS):
+def logreg_with(todo, body, name):
+    """A fresh copy of ``hwlib/logreg.py`` whose TODO ``todo`` block holds ``body`` (the natural solution
+    ``name``), indented like the block, as tests/natural_solutions/README.md describes."""
+    lines = Path(logreg.__file__).read_text(encoding="utf-8").split("\n")
+    begin = next(i for i, line in enumerate(lines) if line.strip() == f"### BEGIN SOLUTION {todo}")
+    end = next(i for i, line in enumerate(lines) if i > begin and line.strip() == f"### END SOLUTION {todo}")
+    indent = re.match(r"[ \t]*", lines[begin])[0]
+    spliced = [indent + line if line.strip() else "" for line in body.strip("\n").split("\n")]
+    module = types.ModuleType(f"hwlib._natural_{todo.replace('.', '_')}")
+    # Its own file name, so that a warning or traceback never shows a line of the kit's file as the culprit.
+    module.__file__ = f"<hwlib/logreg.py with {name}>"
+    exec(compile("\n".join(lines[:begin] + spliced + lines[end + 1:]), module.__file__, "exec"), module.__dict__)
+    return module
+
+
+def timed(function, repeats):
     times, result = [], None
     for _ in range(repeats):
         start = time.perf_counter()
@@ -63,21 +88,20 @@ def best_time(function, repeats=REPEATS):
     return min(times), result
 
 
-def fit_kit(X_train, y_train, num_classes, iterations, vectorized):
-    model = MultiClassLogisticRegressionClassifier(X_train.shape[1], num_classes)
-    model.fit(X_train, y_train, LEARNING_RATE, iterations, vectorized=vectorized)
-    return model
+def time_fit(module, X_train, y_train, num_classes, iterations, budget):
+    """(seconds, model, note): the fit's time, measured in full or extrapolated from one iteration."""
 
+    def fit(n_iters):
+        model = module.MultiClassLogisticRegressionClassifier(X_train.shape[1], num_classes)
+        model.fit(X_train, y_train, settings.P2_LEARNING_RATE, n_iters)
+        return model
 
-def per_sample_iteration(weights, X_aug, labels):
-    """One outer iteration with a Python loop over samples: the same update, summed by hand."""
-    for class_index in range(weights.shape[1]):
-        gradient = np.zeros(weights.shape[0])
-        column = weights[:, class_index]
-        for sample, label in zip(X_aug, labels):
-            probability = 0.5 * (1.0 + math.tanh(0.5 * float(sample @ column)))  # sigma, overflow-free
-            gradient += (float(label == class_index) - probability) * sample
-        weights[:, class_index] += LEARNING_RATE * gradient
+    one, _ = timed(lambda: fit(1), 1)
+    if one * iterations > budget:
+        return one * iterations, None, f"1 iteration timed, x{iterations}"
+    repeats = REPEATS if one * iterations < budget / REPEATS else 1
+    seconds, model = timed(lambda: fit(iterations), repeats)
+    return seconds, model, f"best of {repeats}"
 
 
 def fit_sklearn(model, X_train, y_train):
@@ -88,53 +112,73 @@ def fit_sklearn(model, X_train, y_train):
     return model, converged
 
 
+def natural_solutions(styles):
+    paths = sorted(NATURAL.glob("2.*.py"))
+    if styles != "all":
+        wanted = styles.split(",")
+        missing = [name for name in wanted if not (NATURAL / f"{name}.py").is_file()]
+        if missing:
+            raise SystemExit(f"no natural solution named {', '.join(missing)} in {NATURAL}")
+        paths = [NATURAL / f"{name}.py" for name in wanted]
+    return paths
+
+
 def main():
     data = load_food_cutting()
-    X_train, X_test, y_train, y_test = train_test_split(data.features, data.labels, test_fraction=0.3, seed=0)
+    X_train, X_test, y_train, y_test = train_test_split(
+        data.features, data.labels, test_fraction=settings.TEST_FRACTION, seed=settings.SPLIT_SEED
+    )
     num_classes = len(data.names)
-    iterations = ARGS.iterations
+    iterations = ARGS.iterations or settings.P2_NUM_ITERATIONS
     threads = ARGS.threads if ARGS.threads is not None else "library default"
     print(f"data: {data.source}, {len(X_train)} train / {len(X_test)} test cuts, {X_train.shape[1]} features")
-    print(f"BLAS threads: {threads}; {os.cpu_count()} CPUs; best of {REPEATS} runs\n")
+    print(f"fit: {num_classes} classes x {iterations} iterations, learning rate {settings.P2_LEARNING_RATE}")
+    print(f"BLAS threads: {threads}; {os.cpu_count()} CPUs\n")
 
-    loop_time, loop_model = best_time(lambda: fit_kit(X_train, y_train, num_classes, iterations, vectorized=False))
-    vector_time, vector_model = best_time(lambda: fit_kit(X_train, y_train, num_classes, iterations, vectorized=True))
-    X_aug = np.hstack([X_train, np.ones((len(X_train), 1))])
-    sample_weights = np.zeros((X_aug.shape[1], num_classes))
-    one_iteration, _ = best_time(lambda: per_sample_iteration(sample_weights, X_aug, y_train), repeats=1)
-    sample_time = one_iteration * iterations
+    kit_time, kit_model, kit_note = time_fit(logreg, X_train, y_train, num_classes, iterations, budget=float("inf"))
+    kit_predictions = kit_model.predict(X_test)
+    rows, all_agree = [], True
+    for path in natural_solutions(ARGS.styles):
+        todo = path.name.split("_")[0]
+        if todo in ("2.1.1", "2.2.2", "2.3.2"):
+            continue  # fit calls neither the 2.1.1 gradient function nor predict_prob; 2.3.2 is a notebook cell
+        module = logreg_with(todo, path.read_text(encoding="utf-8"), path.name)
+        seconds, model, note = time_fit(module, X_train, y_train, num_classes, iterations, ARGS.budget)
+        test_accuracy = None
+        if model is not None:
+            predictions = model.predict(X_test)
+            all_agree &= bool(np.array_equal(predictions, kit_predictions))
+            test_accuracy = accuracy(y_test, predictions)
+        rows.append((f"natural {path.stem}", seconds, test_accuracy, note))
+    # The kit once more, after the others: on a busy machine the first measurement alone can be unlucky.
+    kit_time = min(kit_time, time_fit(logreg, X_train, y_train, num_classes, iterations, budget=float("inf"))[0])
+    rows.insert(0, ("kit solution", kit_time, accuracy(y_test, kit_predictions), f"best of {2 * REPEATS}"))
 
-    multinomial_time, (multinomial, multinomial_converged) = best_time(
-        lambda: fit_sklearn(LogisticRegression(max_iter=1000), X_train, y_train)
+    multinomial_time, (multinomial, multinomial_converged) = timed(
+        lambda: fit_sklearn(LogisticRegression(max_iter=1000), X_train, y_train), REPEATS
     )
-    ovr_time, (ovr, ovr_converged) = best_time(
-        lambda: fit_sklearn(OneVsRestClassifier(LogisticRegression(max_iter=1000)), X_train, y_train)
+    ovr_time, (ovr, ovr_converged) = timed(
+        lambda: fit_sklearn(OneVsRestClassifier(LogisticRegression(max_iter=1000)), X_train, y_train), REPEATS
     )
-
-    kit_accuracy = accuracy(y_test, loop_model.predict(X_test))
-    same = np.array_equal(loop_model.predict(X_test), vector_model.predict(X_test))
-    rows = [
-        (f"kit, per-class loop, {iterations} iterations", loop_time, kit_accuracy),
-        (f"kit, vectorized, {iterations} iterations", vector_time, accuracy(y_test, vector_model.predict(X_test))),
-        (f"per-sample Python loop, {iterations} iterations (1 timed)", sample_time, None),
-        ("scikit-learn LogisticRegression (multinomial)", multinomial_time, multinomial.score(X_test, y_test)),
-        ("scikit-learn one-vs-rest LogisticRegression", ovr_time, ovr.score(X_test, y_test)),
+    sklearn_rows = [
+        ("scikit-learn LogisticRegression (multinomial)", multinomial_time, multinomial.score(X_test, y_test), f"best of {REPEATS}"),
+        ("scikit-learn one-vs-rest LogisticRegression", ovr_time, ovr.score(X_test, y_test), f"best of {REPEATS}"),
     ]
-    print(f"{'':58s} {'fit time':>10s} {'test acc':>9s}")
-    for name, seconds, test_accuracy in rows:
+
+    print(f"{'':46s} {'fit time':>10s} {'x kit':>8s} {'test acc':>9s}  how")
+    for name, seconds, test_accuracy, note in rows + sklearn_rows:
         shown = "" if test_accuracy is None else f"{test_accuracy:.4f}"
-        print(f"{name:58s} {seconds:9.3f}s {shown:>9s}")
+        print(f"{name:46s} {seconds:9.3f}s {seconds / kit_time:7.1f}x {shown:>9s}  {note}")
     print()
-    print(f"per-sample loop / kit per-class loop: {sample_time / loop_time:8.0f}x slower")
-    print(f"kit per-class loop / vectorized:      {loop_time / vector_time:8.2f}x")
-    print(f"vectorized and per-class loop predict the same test labels: {same}")
+    print(f"natural solutions timed in full predict the kit's test labels: {all_agree}")
     print(f"scikit-learn converged: multinomial {multinomial_converged}, one-vs-rest {ovr_converged}")
-    best_sklearn = max(rows[3][2], rows[4][2])
+    kit_accuracy = rows[0][2]
+    best_sklearn = max(row[2] for row in sklearn_rows)
     gap = best_sklearn - kit_accuracy
     within = gap <= ALLOWED_GAP
     print(f"kit test accuracy {kit_accuracy:.4f} vs best scikit-learn {best_sklearn:.4f}: "
           f"gap {100 * gap:+.2f} points, within {100 * ALLOWED_GAP:.0f} points: {within}")
-    return 0 if within else 1
+    return 0 if within and all_agree else 1
 
 
 if __name__ == "__main__":

@@ -1,28 +1,30 @@
-"""Logistic regression by gradient ascent on the log-likelihood, two-class and one-vs-rest.
+"""Logistic regression by gradient ascent on the log-likelihood: two-class, and one-vs-rest for C classes.
 
-The model of the handout's equations (5)-(7), with the standard sign convention
-``sigma(z) = 1 / (1 + exp(-z))`` and the bias folded in as a constant-1 feature:
+The model of the handout's equations (5)-(8), with the standard sign convention
+``sigma(z) = 1 / (1 + exp(-z))`` and the bias folded in as a constant-1 feature (equation 6):
 
-| name              | shape                         | meaning                                            |
-|-------------------|-------------------------------|----------------------------------------------------|
-| ``X``             | (N, M) float                  | one sample per row, raw features (no bias column)  |
-| ``X_aug``         | (N, M + 1)                    | ``X`` with a column of ones appended (equation 6)  |
-| ``y`` (two-class) | (N,) 0/1                      | 1 marks the positive class                         |
-| ``y`` (C classes) | (N,) int in 0..C-1            | the class of each sample                           |
-| weights           | (M + 1,)                      | one two-class model: ``[w, b]``, bias last         |
-| weights (C)       | (M + 1, C)                    | column c is the model of class c against the rest  |
-| accuracies        | (n_iters + 1,)                | ``accuracies[t]``: training accuracy after t updates |
+| name              | shape              | meaning                                                     |
+|-------------------|--------------------|-------------------------------------------------------------|
+| ``X``             | (N, M) float       | one sample per row, raw features (no constant-1 column)     |
+| ``X_aug``         | (N, M + 1)         | ``X`` with a column of ones appended (equation 6)           |
+| ``y`` (two-class) | (N,) 0/1           | 1 marks the positive class                                  |
+| ``y`` (C classes) | (N,) int 0..C-1    | the class of each sample                                    |
+| ``weights``       | (M + 1,)           | one two-class model ``[w, b]``, bias last; each model owns its own |
+| stacked weights   | (M + 1, C)         | ``MultiClassLogisticRegressionClassifier.weights``: column c is a copy of ``classifiers[c].weights`` |
+| accuracies        | (n_iters + 1,)     | ``accuracies[t]``: training accuracy after t iterations      |
 
-Training maximises equation (7) by gradient ascent, equation (8), with the *summed*
-(not averaged) gradient of equation (7) (``log_likelihood_gradient``, derived in 2.1.1) and
-starts from zero weights, as the course's skeleton does. One update of one model is ``_gradient_ascent_step``;
-the one-vs-rest classifier either calls it once per class (the handout's loop) or once with
-all C columns at a time (``vectorized=True``): the same code on a wider weight matrix.
+The handout's TODOs in this file: ``sigmoid`` (2.2.1), ``TwoClassLogisticRegressionClassifier.predict_prob``
+(2.2.2) and ``.gradient_ascent_step`` (2.2.3), the loop over classes in
+``MultiClassLogisticRegressionClassifier.fit`` (2.3.1), and ``log_likelihood_gradient``, the code of
+the derivation of 2.1.1. Every public function checks its arguments before its TODO runs, so the
+code of a TODO can trust them. Training starts from zero weights and uses the *summed* (not
+averaged) gradient of equation (7), as the course's skeleton does.
 """
 
 from __future__ import annotations
 
 import numbers
+import weakref
 
 import numpy as np
 
@@ -33,56 +35,64 @@ _NUMERIC_KINDS = "biuf"  # bool, signed and unsigned int, float
 
 
 def sigmoid(z):
-    """The logistic function ``1 / (1 + exp(-z))``, elementwise, without overflow.
+    """The logistic function ``sigma(z) = 1 / (1 + e^(-z))``, applied to every entry of ``z``.
 
-    Returns a float64 array shaped like ``z``. Exactly 0.0 and 1.0 far out in the tails
-    (e.g. at -1000 and +1000) and never NaN for finite input.
+    ``z``: a number or an array of any shape, finite. Returns float64 values in [0, 1], shaped like
+    ``z``: ``sigmoid(0) = 0.5``, near 1 for large positive ``z``, near 0 for large negative ``z``
+    (``sigmoid(-1000)`` is 0, not NaN).
     """
     z = _as_finite_float_array(z, "z")
     ### BEGIN SOLUTION 2.2.1
-    ### HINT: 1 / (1 + exp(-z)) elementwise, without overflow or NaN for large |z| (e.g. z = -1000 or 1000)
-    # exp(-|z|) lies in (0, 1], so it cannot overflow; for z < 0 the algebraically equal
-    # form exp(z) / (1 + exp(z)) is used.
+    ### HINT: 1 / (1 + e^(-z)) for every entry of z (the standard sign; the notebook explains the slip in equation (5))
+    # e^(-|z|) lies in (0, 1] and cannot overflow; for z < 0, sigma(z) = e^z / (1 + e^z) = e^(-|z|) / (1 + e^(-|z|)).
     with np.errstate(under="ignore"):
         decay = np.exp(-np.abs(z))
-    return np.where(z >= 0, 1.0 / (1.0 + decay), decay / (1.0 + decay))
+    values = np.where(z >= 0, 1.0 / (1.0 + decay), decay / (1.0 + decay))
     ### END SOLUTION 2.2.1
+    return values
 
 
 def add_bias_feature(features):
-    """``features`` (N, M) with a column of ones appended: the ``X_aug`` of equation (6)."""
-    features = check_features(features, "X")
-    return _with_bias(features)
+    """``features`` (N, M) with a column of ones appended: the ``X_aug`` of equation (6), shape (N, M + 1)."""
+    return _with_bias(check_features(features, "X"))
 
 
 def log_likelihood(weights, features, labels):
     """Equation (7): the log-likelihood of 0/1 ``labels`` under the two-class model ``weights``.
 
     ``weights`` has shape (M + 1,) with the bias last, ``features`` (N, M), ``labels`` (N,).
-    Computed as ``sum(y * z - log(1 + exp(z)))`` with ``z = X_aug @ weights``, which is
+    Computed as ``sum(y * z - log(1 + e^z))`` with ``z`` the score of each sample, which is
     equation (7) rearranged so that no logarithm of 0 can occur.
     """
     features_aug, labels, weights = _check_two_class_problem(weights, features, labels)
-    logits = features_aug @ weights
-    return float(np.sum(labels * logits - np.logaddexp(0.0, logits)))
+    scores = features_aug @ weights
+    return float(np.sum(labels * scores - np.logaddexp(0.0, scores)))
 
 
 def log_likelihood_gradient(weights, features, labels):
-    """The analytic gradient of equation (7) with respect to ``weights`` (derived in 2.1.1), shape (M + 1,)."""
+    """The gradient of the log-likelihood of equation (7) with respect to ``weights`` (your derivation of 2.1.1).
+
+    ``weights`` (M + 1,), bias last; ``features`` (N, M); ``labels`` (N,) 0/1. Given to your code:
+    ``features_aug`` (N, M + 1), the features with the constant 1 of equation (6) appended, and
+    ``labels`` as floats. Returns a float64 array shaped like ``weights``: the sum over the N
+    samples, not the mean.
+    """
     features_aug, labels, weights = _check_two_class_problem(weights, features, labels)
+    gradient = np.zeros_like(weights)
     ### BEGIN SOLUTION 2.1.1
-    ### HINT: return the gradient of equation (7) you derived, summed over the samples, shape (M + 1,); features_aug has the bias column
-    return features_aug.T @ (labels - sigmoid(features_aug @ weights))
+    ### HINT: the gradient of equation (7) that you derived in 2.1.1, evaluated at weights and summed over the N samples
+    gradient = features_aug.T @ (labels - sigmoid(features_aug @ weights))
     ### END SOLUTION 2.1.1
+    return gradient
 
 
 def gradient_check(weights, features, labels, step=1e-5):
-    """Relative error between the analytic gradient and central finite differences.
+    """Relative error between ``log_likelihood_gradient`` and central finite differences of ``log_likelihood``.
 
-    The finite differences come from problem 1's ``scalar_finite_diff`` applied to
-    ``log_likelihood``; the error is ``|g_analytic - g_numeric| / (|g_analytic| + |g_numeric|)``
-    (Euclidean norms), 0.0 when both are zero. Around 1e-10 for a correct gradient on a small
-    problem; a wrong sign or a missing term gives something of order 1.
+    The finite differences come from problem 1's ``scalar_finite_diff``; the error is
+    ``|g_analytic - g_numeric| / (|g_analytic| + |g_numeric|)`` (Euclidean norms), 0.0 when both
+    are zero. Around 1e-10 for a correct gradient on a small problem; a wrong sign or a missing
+    term gives something of order 1.
     """
     features_aug, labels, weights = _check_two_class_problem(weights, features, labels)
     step = check_positive_number(step, "step")
@@ -93,78 +103,78 @@ def gradient_check(weights, features, labels, step=1e-5):
     return 0.0 if scale == 0.0 else float(np.linalg.norm(analytic - numeric) / scale)
 
 
-def _gradient_ascent_step(weights, features_aug, targets, learning_rate):
-    """One step of equation (8), in place: ``weights += learning_rate *`` the gradient of equation (7) for ``targets``.
-
-    Either one model (weights (M + 1,), targets (N,)) or C models side by side
-    (weights (M + 1, C), targets (N, C)); the same two lines serve both.
-    """
-    ### BEGIN SOLUTION 2.2.3
-    ### HINT: weights += learning_rate * the summed gradient you derived in 2.1.1, in place; with matrix products it serves targets (N,) and (N, C) alike
-    residuals = targets - sigmoid(features_aug @ weights)
-    weights += learning_rate * (features_aug.T @ residuals)
-    ### END SOLUTION 2.2.3
-
-
 class TwoClassLogisticRegressionClassifier:
     """Logistic regression for labels 0/1, trained by gradient ascent from zero weights.
 
-    ``weights`` (shape (n_features + 1,), bias last) is the learned ``w~`` of equation (6).
+    ``weights`` (shape (n_features + 1,), bias last) is the ``w~`` of equation (6). The
+    classifier owns it: ``self.weights = ...`` and ``self.weights += ...`` both update it.
     """
 
     def __init__(self, n_features):
         self.n_features = check_count(n_features, "n_features")
         self.weights = np.zeros(self.n_features + 1)
 
-    @classmethod
-    def _sharing(cls, weights_column):
-        """A classifier whose weights are a view into a wider weight matrix."""
-        classifier = cls(len(weights_column) - 1)
-        classifier.weights = weights_column
-        return classifier
-
-    def decision_function(self, X):
-        """The logits ``X_aug @ weights``, shape (N,): positive means class 1 is more likely."""
-        return self._logits(_with_bias(check_features(X, "X", self.n_features)))
-
     def predict_prob(self, X):
-        """P(y = 1 | x) for each row of ``X`` (N, n_features), equation (5) with the standard sign."""
+        """P(y = 1 | x) for each row x of ``X``: equation (5) with the standard sign (see ``sigmoid``).
+
+        ``X``: (N, n_features), one sample per row, without the constant 1 feature. Returns shape (N,).
+        """
         X = check_features(X, "X", self.n_features)
         ### BEGIN SOLUTION 2.2.2
-        ### HINT: sigmoid of the logit for each row of X, shape (N,); append the constant 1 feature first (equation (6)), the bias is the last weight
-        X_aug = _with_bias(X)
-        return sigmoid(X_aug @ self.weights)
+        ### HINT: append the constant 1 feature to each sample (equation (6)), then the sigmoid of each sample's score w~^T x~
+        X_aug = np.hstack([X, np.ones((X.shape[0], 1))])
+        probabilities = sigmoid(X_aug @ self.weights)
         ### END SOLUTION 2.2.2
+        return probabilities
 
     def predict(self, X):
-        """Labels 0/1, shape (N,): 1 where P(y = 1 | x) > 0.5, i.e. where the logit is positive."""
-        return (self.decision_function(X) > 0).astype(np.int64)
+        """Labels 0/1, shape (N,): 1 where ``predict_prob`` exceeds 0.5."""
+        return (self.predict_prob(X) > 0.5).astype(np.int64)
+
+    def gradient_ascent_step(self, X, y, learning_rate):
+        """One step of gradient ascent on the log-likelihood, equation (8), applied to ``self.weights``.
+
+        ``X`` (N, n_features) samples, ``y`` (N,) labels 0/1, ``learning_rate`` > 0. The gradient
+        is the one you derived in 2.1.1, summed over the N samples. Given to your code: ``X_aug``
+        (N, n_features + 1), the samples with the constant 1 of equation (6) appended, and ``y``
+        as floats. Returns nothing: the step updates ``self.weights``.
+        """
+        X_aug = _checked_with_bias(X, "X", self.n_features)  # X with the constant 1 of equation (6) appended
+        y = check_labels(y, "y", 2, len(X_aug)).astype(np.float64)  # 0.0 and 1.0
+        learning_rate = check_learning_rate(learning_rate)
+        ### BEGIN SOLUTION 2.2.3
+        ### HINT: the gradient of equation (7) at self.weights (your 2.1.1 result), then the update of equation (8) on self.weights
+        probabilities = sigmoid(X_aug @ self.weights)
+        gradient = X_aug.T @ (y - probabilities)
+        self.weights = self.weights + learning_rate * gradient
+        ### END SOLUTION 2.2.3
 
     def fit(self, X, y, learning_rate, n_iters):
         """``n_iters`` gradient-ascent steps on equation (7), continuing from the current weights.
 
         Returns the training accuracy before the first step and after each step, shape (n_iters + 1,).
         """
-        X_aug = _with_bias(check_features(X, "X", self.n_features))
-        targets = check_labels(y, "y", 2, len(X_aug)).astype(np.float64)
+        X, X_aug = _prepare_training_features(X, self.n_features)  # checked once here, for every step below
+        y = check_labels(y, "y", 2, len(X))
         learning_rate = check_learning_rate(learning_rate)
         n_iters = check_count(n_iters, "n_iters")
-        accuracies = np.empty(n_iters + 1)
-        for iteration in range(n_iters):
-            accuracies[iteration] = np.mean((self._logits(X_aug) > 0) == targets)
-            _gradient_ascent_step(self.weights, X_aug, targets, learning_rate)
-        accuracies[-1] = np.mean((self._logits(X_aug) > 0) == targets)
-        return accuracies
+        accuracies = [self._accuracy(X_aug, y)]
+        for _ in range(n_iters):
+            self.gradient_ascent_step(X, y, learning_rate)
+            accuracies.append(self._accuracy(X_aug, y))
+        return np.array(accuracies)
 
-    def _logits(self, X_aug):
-        return X_aug @ self.weights
+    def _accuracy(self, X_aug, y):
+        # A positive score is a probability above 0.5: the same labels as predict, without predict_prob.
+        return np.mean((X_aug @ self.weights > 0) == y)
 
 
 class MultiClassLogisticRegressionClassifier:
-    """One-vs-rest logistic regression: one two-class model per class, C models in all.
+    """One-vs-rest logistic regression: one two-class classifier per class.
 
-    ``classifiers[c]`` separates class c from the rest; its weights are column c of
-    ``weights`` (shape (n_features + 1, n_classes)), so both views always agree.
+    ``classifiers[c]`` separates class c (label 1) from all other classes (label 0) and owns its
+    weights. ``weights`` stacks them side by side, shape (n_features + 1, n_classes), and
+    ``predict`` picks, for each sample, the class whose classifier gives the highest score.
     """
 
     def __init__(self, n_features, n_classes):
@@ -172,61 +182,59 @@ class MultiClassLogisticRegressionClassifier:
         self.n_classes = check_count(n_classes, "n_classes")
         if self.n_classes < 2:
             raise ValueError(f"n_classes must be at least 2, got {n_classes!r}")
-        self.weights = np.zeros((self.n_features + 1, self.n_classes))
-        self.classifiers = [TwoClassLogisticRegressionClassifier._sharing(self.weights[:, c]) for c in range(self.n_classes)]
+        self.classifiers = [TwoClassLogisticRegressionClassifier(self.n_features) for _ in range(self.n_classes)]
+
+    @property
+    def weights(self):
+        """The classifiers' weights side by side, shape (n_features + 1, n_classes); a read-only copy.
+
+        To change the model, change ``classifiers[c].weights``.
+        """
+        stacked = np.column_stack([classifier.weights for classifier in self.classifiers])
+        stacked.flags.writeable = False
+        return stacked
 
     def decision_function(self, X):
-        """The logits of every class's model, shape (N, n_classes)."""
-        return _with_bias(check_features(X, "X", self.n_features)) @ self.weights
+        """The score of every class's classifier for every sample, shape (N, n_classes)."""
+        return _checked_with_bias(X, "X", self.n_features) @ self.weights
 
     def predict_prob(self, X):
-        """P(class c | x) of each one-vs-rest model, shape (N, n_classes); rows need not sum to 1."""
-        return sigmoid(self.decision_function(X))
+        """P(class c | x) of each one-vs-rest classifier, shape (N, n_classes); rows need not sum to 1."""
+        X = check_features(X, "X", self.n_features)
+        return np.column_stack([classifier.predict_prob(X) for classifier in self.classifiers])
 
     def predict(self, X):
         """The most probable class of each row, shape (N,).
 
-        Taken as the largest logit: sigma is increasing, so this is the class of highest
+        Taken as the highest score: sigma is increasing, so this is the class of highest
         probability, and unlike probabilities that have rounded to exactly 1.0 it has no ties.
         """
         return np.argmax(self.decision_function(X), axis=1)
 
-    def fit(self, X, y, learning_rate, n_iters, vectorized=False):
-        """``n_iters`` outer iterations; in each, every class's model takes one step on its own 0/1 labels.
+    def fit(self, X, y, learning_rate, n_iters):
+        """``n_iters`` outer iterations of one-vs-rest training, from the current weights.
 
-        ``vectorized=False`` follows the handout: a loop over the classes. ``vectorized=True``
-        steps all columns of ``weights`` at once with the same update code and gives the same
-        numbers up to float rounding. Returns the training accuracy before the first iteration
-        and after each, shape (n_iters + 1,).
+        ``X`` (N, n_features), ``y`` (N,) class labels 0..n_classes-1, ``learning_rate`` > 0. In each
+        iteration every class's classifier takes one gradient-ascent step, on its own two-class
+        labels. Returns the training accuracy before the first iteration and after each, shape (n_iters + 1,).
         """
-        X_aug = _with_bias(check_features(X, "X", self.n_features))
-        labels = check_labels(y, "y", self.n_classes, len(X_aug))
+        X, X_aug = _prepare_training_features(X, self.n_features)  # checked once here, for every step below
+        y = check_labels(y, "y", self.n_classes, len(X))  # int class labels 0..n_classes-1
         learning_rate = check_learning_rate(learning_rate)
         n_iters = check_count(n_iters, "n_iters")
-        if not isinstance(vectorized, bool):
-            raise TypeError(f"vectorized must be True or False, got {vectorized!r}")
-        accuracies = np.empty(n_iters + 1)
-        for iteration in range(n_iters):
-            accuracies[iteration] = self._accuracy(X_aug, labels)
-            self._one_vs_rest_step(X_aug, labels, learning_rate, vectorized)
-        accuracies[-1] = self._accuracy(X_aug, labels)
-        return accuracies
+        accuracies = [self._accuracy(X_aug, y)]
+        for _ in range(n_iters):
+            for c in range(self.n_classes):
+                ### BEGIN SOLUTION 2.3.1
+                ### HINT: new two-class labels for classifier c (1 for the samples of class c, 0 for all the others), then train classifier c on them for one step
+                labels_c = (y == c).astype(np.int64)
+                self.classifiers[c].gradient_ascent_step(X, labels_c, learning_rate)
+                ### END SOLUTION 2.3.1
+            accuracies.append(self._accuracy(X_aug, y))
+        return np.array(accuracies)
 
-    def _one_vs_rest_step(self, X_aug, labels, learning_rate, vectorized):
-        """One outer iteration: every class's model takes one gradient-ascent step on its own 0/1 labels."""
-        ### BEGIN SOLUTION 2.3.1
-        ### HINT: for each class c: its two-class labels (1 where the label is c, 0 elsewhere), then one _gradient_ascent_step on classifiers[c].weights (vectorized: all C columns of self.weights at once)
-        if vectorized:
-            all_targets = (labels[:, None] == np.arange(self.n_classes)).astype(np.float64)  # column c: class c
-            _gradient_ascent_step(self.weights, X_aug, all_targets, learning_rate)
-            return
-        for class_index, classifier in enumerate(self.classifiers):
-            class_targets = (labels == class_index).astype(np.float64)
-            _gradient_ascent_step(classifier.weights, X_aug, class_targets, learning_rate)
-        ### END SOLUTION 2.3.1
-
-    def _accuracy(self, X_aug, labels):
-        return np.mean(np.argmax(X_aug @ self.weights, axis=1) == labels)
+    def _accuracy(self, X_aug, y):
+        return np.mean(np.argmax(X_aug @ self.weights, axis=1) == y)
 
 
 def first_iteration_above(accuracies, threshold=0.99):
@@ -298,7 +306,10 @@ def check_learning_rate(learning_rate):
 
 def check_features(features, name, n_features=None):
     """A finite 2-d float64 array with at least one row (and ``n_features`` columns if given)."""
-    array = _as_finite_float_array(features, name, require_2d=True)
+    if _prepared_augmentation(features) is not None:
+        array = features  # already checked when a training loop prepared it
+    else:
+        array = _as_finite_float_array(features, name, require_2d=True)
     if array.shape[0] == 0 or array.shape[1] == 0:
         raise ValueError(f"{name} must have at least one row and one column, got shape {array.shape}")
     if n_features is not None and array.shape[1] != n_features:
@@ -330,14 +341,15 @@ def _check_label_vector(labels, name, length=None):
 
 
 def _check_two_class_problem(weights, features, labels):
-    features = check_features(features, "features")
+    features_aug = _checked_with_bias(features, "features")
+    features = features_aug[:, :-1]
     weights = _as_finite_float_array(weights, "weights")
     if weights.shape != (features.shape[1] + 1,):
         raise ValueError(
             f"weights must have shape ({features.shape[1] + 1},), one per feature plus the bias, got shape {weights.shape}"
         )
     labels = check_labels(labels, "labels", 2, len(features)).astype(np.float64)
-    return _with_bias(features), labels, weights
+    return features_aug, labels, weights
 
 
 def _as_finite_float_array(value, name, require_2d=False):
@@ -355,3 +367,43 @@ def _as_finite_float_array(value, name, require_2d=False):
 
 def _with_bias(features):
     return np.hstack([features, np.ones((features.shape[0], 1))])
+
+
+def _checked_with_bias(features, name, n_features=None):
+    """``features`` checked at the door (``check_features``), with the constant-1 column appended."""
+    features = check_features(features, name, n_features)
+    augmented = _prepared_augmentation(features)
+    return _with_bias(features) if augmented is None else augmented
+
+
+# Training calls the two-class step C x n_iters times on the same samples (700 times in the
+# notebook). Copying the samples with their constant-1 column at every step costs several times
+# more than the step itself, so a training loop prepares them once, as a read-only X_aug, and
+# hands the step the read-only view ``X_aug[:, :-1]``; the door checks recognise that view and
+# reuse its check and its X_aug. Any other array is checked and copied as usual.
+_PREPARED = weakref.WeakValueDictionary()  # id(X_aug) -> X_aug, for X_aug built by a training loop
+
+
+def _prepare_training_features(features, n_features):
+    """``(X, X_aug)`` for a training loop: ``features`` checked once, ``X_aug`` built once, both read-only."""
+    features = check_features(features, "X", n_features)
+    augmented = _prepared_augmentation(features)
+    if augmented is None:
+        augmented = _with_bias(features)
+        augmented.flags.writeable = False
+        _PREPARED[id(augmented)] = augmented
+    return augmented[:, :-1], augmented
+
+
+def _prepared_augmentation(features):
+    """The read-only X_aug of which ``features`` is the feature part (a view), or None."""
+    base = getattr(features, "base", None)
+    if base is None or _PREPARED.get(id(base)) is not base or base.flags.writeable:
+        return None
+    is_feature_part = (
+        features.shape == (base.shape[0], base.shape[1] - 1)
+        and features.strides == base.strides
+        and features.ctypes.data == base.ctypes.data
+        and features.dtype == base.dtype
+    )
+    return base if is_feature_part else None

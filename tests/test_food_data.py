@@ -137,8 +137,11 @@ def test_a_broken_default_file_is_an_error_not_a_silent_fallback(monkeypatch, tm
 
 
 def test_this_machines_default_data_loads():
+    # What the problem 2 notebook relies on, on whichever data this machine has.
     data = load_food_cutting()
     assert data.features.shape[1] == 220 and len(data.names) == 7
+    assert set(np.unique(data.labels).tolist()) == set(range(7))
+    assert np.all(np.isfinite(data.features))
     if food_data.DEFAULT_DATA_PATH.exists():
         assert data.source == food_data.COURSE_FILE and data.features.shape == (10658, 220)
     else:

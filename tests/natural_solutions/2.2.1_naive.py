@@ -1,0 +1,1 @@
+values = 1 / (1 + np.exp(-z))

@@ -1,0 +1,1 @@
+probabilities = sigmoid(add_bias_feature(X).dot(self.weights))
