@@ -24,8 +24,7 @@ from hwtools.grade.feedback import render
 KIT = Path(__file__).resolve().parents[1]
 CHEATS = KIT / "tests" / "cheats"
 NATURAL = KIT / "tests" / "natural_solutions"
-WRONG = next((folder for folder in (KIT / "instructor" / "wrong_solutions", KIT / "tests" / "wrong_solutions")
-              if folder.is_dir()), KIT / "instructor" / "wrong_solutions")
+WRONG = KIT / "instructor" / "wrong_solutions"
 TIME_LIMIT = 20.0  # per TODO's run; the endless loop costs this once
 AUTO_TODOS = [todo.id for todo in TODO_BY_ID.values() if todo.auto]
 
