@@ -1,7 +1,7 @@
 """The TODO blocks: find them, read a submission's code safely, and build the kits the worker runs.
 
-A block is fenced by ``### BEGIN SOLUTION 1.2.1`` ... ``### END SOLUTION 1.2.1`` in the instructor's
-kit and by ``### BEGIN TODO 1.2.1`` ... ``### END TODO 1.2.1`` in the student edition; a submission
+A block is fenced by two marker lines, ``### BEGIN <style> 1.2.1`` and ``### END <style> 1.2.1``,
+whose style is SOLUTION in the instructor's kit and TODO in the student edition; a submission
 may use either. Only the code between the markers is ever taken from a submission: everything
 around it (signatures, door checks, the ``return`` after the block) comes from the reference kit.
 

@@ -245,7 +245,7 @@ def make_known_training(rng, variant):
     basis = rng.normal(size=(4, 4))
     return {"objective": {"A": basis @ basis.T / 8.0 + 0.5 * np.eye(4), "m": rng.normal(size=4),
                           "c": float(rng.uniform(100, 400))},
-            "iterations": int(3 + variant), "rollouts": 2, "learning_rate": float((0.05, 0.1, 0.08)[variant % 3]),
+            "iterations": int(3 + variant), "rollouts": 2, "learning_rate": float((0.07, 0.12, 0.2)[variant % 3]),
             "fd_step": float((0.5, 0.25, 0.4)[variant % 3]), "seed": int(rng.integers(0, 100)),
             "initial_params": rng.normal(size=4) * 0.5}
 
@@ -298,7 +298,8 @@ def judge_known_rewards(args, result, expected, services):
 
 
 def make_real_training(rng, variant):
-    return {"iterations": 2, "rollouts": 3, "learning_rate": float((0.002, 0.001)[variant % 2]),
+    # Rates that do not converge on the notebook's run: the inputs shown to students give no 1.3.3 answer away.
+    return {"iterations": 2, "rollouts": 3, "learning_rate": float((0.0003, 0.0002)[variant % 2]),
             "fd_step": 0.5, "seed": int(rng.integers(0, 1000)), "initial_params": rng.normal(size=4) * 0.05}
 
 

@@ -86,7 +86,7 @@ def _digest(*parts):
 class Grader:
     """Grades submissions against one reference; keeps the reference's answers between submissions.
 
-    ``reference``: the instructor's kit (a folder whose ``hwlib`` has ``### BEGIN SOLUTION`` blocks),
+    ``reference``: the instructor's kit (a folder whose ``hwlib`` has the solution blocks, style SOLUTION),
     or None for the answer key of a student edition (``answer_key``, default next to this module).
     ``isolation``: "auto", "bwrap" or "none" (see ``Sandbox``). ``time_limit``: seconds of wall
     clock (and CPU) per worker run of a TODO; ``memory_limit``: bytes of address space.
@@ -101,7 +101,7 @@ class Grader:
         if self.reference is not None:
             if not has_solutions(self.reference):
                 raise GradingError(f"{self.reference}: not an instructor's kit (its hwlib/ must hold a "
-                                   f"'### BEGIN SOLUTION' block for each of {', '.join(checks.GRADED_TODOS)})")
+                                   f"solution block (markers of style SOLUTION) for each of {', '.join(checks.GRADED_TODOS)})")
             self.layout = blocks.load_layout(self.reference)
             self.reference_bodies = self.layout.reference_bodies()
             self.hidden = load_hidden_checks(self.reference)
