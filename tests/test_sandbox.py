@@ -11,6 +11,7 @@ from __future__ import annotations
 import io
 import os
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
@@ -131,18 +132,26 @@ def test_endless_loop_ends_at_the_time_limit(mode, request, tmp_path):
     assert outcome.status in ("timeout", "ended") and not outcome.answers
 
 
-def worker_processes(kit):
-    """Processes running the worker, in the sandbox (/grader/worker.py) or on ``kit`` without one."""
-    found = []
-    for entry in os.listdir("/proc"):
-        if entry.isdigit():
+def worker_processes(kit, settle=3.0):
+    """Live processes running the worker, in the sandbox (/grader/worker.py) or on ``kit`` without
+    one; killed ones get up to ``settle`` seconds to go."""
+    deadline = time.monotonic() + settle
+    while True:
+        found = []
+        for entry in os.listdir("/proc"):
+            if not entry.isdigit():
+                continue
             try:
                 cmdline = Path(f"/proc/{entry}/cmdline").read_bytes()
-            except OSError:
+                state = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except (OSError, IndexError):
                 continue
-            if b"/grader/worker.py" in cmdline or (b"worker.py" in cmdline and str(kit).encode() in cmdline):
+            if state != "Z" and (b"/grader/worker.py" in cmdline or
+                                 (b"worker.py" in cmdline and str(kit).encode() in cmdline)):
                 found.append(int(entry))
-    return found
+        if not found or time.monotonic() > deadline:
+            return found
+        time.sleep(0.1)
 
 
 @pytest.mark.parametrize("mode", ["isolated", "plain"])
@@ -158,7 +167,7 @@ def test_a_fork_does_not_outlive_the_run(mode, request, tmp_path):
         time.sleep(0.3)
         values = np.array([1.0])
     """))
-    assert not worker_processes(kit)
+    assert not worker_processes(kit, settle=0)
     assert values(run(kit, box)).tolist() == [1.0]
     assert not worker_processes(kit), "a process started by the student's code outlived the run"
 
