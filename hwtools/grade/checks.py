@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hwtools.grade.worker import known_function, quadratic_objective
+from hwtools.grade.worker import quadratic_objective
 
 PUBLIC_SEED = 20_240_131  # the visible inputs' seed: students may know it
 

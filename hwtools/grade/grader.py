@@ -181,7 +181,7 @@ class Grader:
         bodies = read.bodies[todo]
         module_level = any(block.module_level for file_blocks in layout.blocks_by_file.values()
                            for block in file_blocks if block.todo == todo)
-        for number, body in enumerate(bodies):
+        for body in bodies:
             problem = blocks.check_body(body, module_level)
             if problem:
                 return f"your code for TODO {todo} does not parse ({problem})"
