@@ -310,6 +310,8 @@ def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answe
     for entry in result["todos"]:
         if entry["first_failure"] and entry["first_failure"]["hidden"]:
             assert set(entry["first_failure"]) == {"check", "hidden", "input"}
+        if entry["id"] in cheat["hardcode"]:  # right on every visible input, wrong on the hidden ones
+            assert all(check["failed_on"] == "hidden" for check in entry["checks"]), entry
 
 
 # --------------------------------------------------------------------------------------------
