@@ -66,7 +66,10 @@ INSTRUCTOR_ONLY = (
     # Its per-sample reference loop spells out the gradient of 2.1.1 and the labels of 2.3.1.
     "benchmarks/bench_logreg.py",
     "benchmarks/requirements-bench.txt",
+    "benchmarks/bench_grading.py",  # it grades against the reference solution
 )
+
+ANSWER_KEY = "hwtools/grade/answer_key.json"  # written by the build: the visible checks' expected values
 
 # Only the homework holds solution blocks; tooling elsewhere (the grader) may talk about markers freely.
 HOMEWORK_FOLDERS = ("hwlib/", "notebooks/")
@@ -514,8 +517,13 @@ def student_files(source, keep=frozenset(), replace=None):
     return files
 
 
-def build_student_edition(source, out_dir, keep=frozenset(), replace=None, force=False):
-    """Write the student edition of the kit in ``source`` into ``out_dir``. Returns the file list."""
+def build_student_edition(source, out_dir, keep=frozenset(), replace=None, force=False, answer_key=True):
+    """Write the student edition of the kit in ``source`` into ``out_dir``. Returns the file list.
+
+    With ``answer_key`` the grader's answer key for the visible checks (``ANSWER_KEY``: the
+    reference's values on the visible inputs, nothing about hidden ones) is written too, so that
+    ``python -m hwtools.grade`` works in the student edition; it runs the reference sandboxed.
+    """
     source, out_dir = Path(source).resolve(), Path(out_dir).resolve()
     if out_dir == source or source.is_relative_to(out_dir):
         raise ReleaseError(f"{out_dir}: the output folder must not be the kit or contain it")
@@ -535,6 +543,11 @@ def build_student_edition(source, out_dir, keep=frozenset(), replace=None, force
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_bytes(data)
         target.chmod(0o755 if executable else 0o644)
+    if answer_key:
+        from hwtools.grade import write_answer_key  # noqa: PLC0415 - only the full build needs the grader
+
+        write_answer_key(source, out_dir / ANSWER_KEY)
+        return sorted([*files, ANSWER_KEY])
     return sorted(files)
 
 
@@ -546,12 +559,15 @@ def main(argv=None):
     student.add_argument("--source", default=str(Path(__file__).resolve().parents[1]), help="the instructor's kit (default: this kit)")
     student.add_argument("--force", action="store_true", help="replace an earlier student edition in OUT_DIR")
     student.add_argument("--keep", action="append", default=[], metavar="TODO", help="keep this TODO's solution (for checking the tests)")
+    student.add_argument("--no-answer-key", action="store_true",
+                         help="skip the grader's answer key (then the student edition's grader has nothing to compare with)")
     args = parser.parse_args(argv)
     unknown = [todo for todo in args.keep if todo not in TODO_BY_ID]
     if unknown:
         parser.error(f"unknown TODO id(s) for --keep: {', '.join(unknown)}")
     try:
-        names = build_student_edition(args.source, args.out_dir, keep=frozenset(args.keep), force=args.force)
+        names = build_student_edition(args.source, args.out_dir, keep=frozenset(args.keep), force=args.force,
+                                      answer_key=not args.no_answer_key)
     except ReleaseError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1

@@ -18,6 +18,7 @@ import nbformat
 import pytest
 
 from instructor.release import (
+    ANSWER_KEY,
     INSTRUCTOR_ONLY,
     ReleaseError,
     build_student_edition,
@@ -29,7 +30,7 @@ from instructor.release import (
 )
 
 REPO = Path(__file__).resolve().parents[1]
-MARKER = re.compile(r"(BEGIN|END) SOLUTION|### HINT:")
+MARKER = re.compile(r"(BEGIN|END) SOLUTION|### HINT:|### STUB:")
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +68,7 @@ def _source_blocks(path):
 
 
 def test_building_twice_gives_byte_identical_output(edition, tmp_path):
-    build_student_edition(REPO, tmp_path / "again")
+    build_student_edition(REPO, tmp_path / "again")  # the answer key included
     assert _tree(tmp_path / "again") == _tree(edition)
 
 
@@ -78,8 +79,9 @@ def test_instructor_files_are_left_out_and_the_rest_is_there(edition):
     assert "instructor/release.py" not in names and "tests/test_release.py" not in names and "tests/test_grading.py" not in names
     assert not any(name.startswith(("tests/hidden/", "tests/wrong_solutions/")) for name in names)
     expected = {name for name in kit_files(REPO) if not any(name == p or (p.endswith("/") and name.startswith(p)) for p in INSTRUCTOR_ONLY)}
-    assert names == expected
-    for needed in ("hwtools/grade.py", "hwlib/__init__.py", "pyproject.toml", "requirements.txt", "README.md", "conftest.py"):
+    assert names == expected | {ANSWER_KEY}
+    assert not any(name.startswith("instructor/") for name in names)
+    for needed in ("hwtools/grade/__init__.py", ANSWER_KEY, "hwlib/__init__.py", "pyproject.toml", "requirements.txt", "README.md", "conftest.py"):
         assert needed in names
     assert any(name.startswith("notebooks/") and name.endswith(".ipynb") for name in names)
     assert not any(name.endswith(".npz") or name.startswith("data/audio/") for name in names)
@@ -110,17 +112,21 @@ def _lines_outside_blocks(path):
 
 
 def test_library_blocks_become_todo_stubs(edition):
+    """Each block becomes the student's start between kept TODO markers: the hint, then its STUB
+    lines or ``pass``; the skeleton around it is the source's, line for line."""
     seen = set()
     for path in sorted((REPO / "hwlib").rglob("*.py")):
         name = path.relative_to(REPO).as_posix()
-        if name == "instructor/release.py":
-            continue
-        blocks = _source_blocks(path)
         student = (edition / name).read_text(encoding="utf-8")
-        for todo, body, _ in blocks:
+        for todo, body, _ in _source_blocks(path):
             seen.add(todo)
-            stub = re.compile(rf'raise NotImplementedError\("TODO {re.escape(todo)}: [^"]+"\)|^\w+ = None  # TODO {re.escape(todo)}: .+$', re.M)
+            stub = re.compile(rf"^([ \t]*)### BEGIN TODO {re.escape(todo)}\n\1(# TODO {re.escape(todo)}: .+|\w+ = None  # TODO {re.escape(todo)}: .+)\n"
+                              rf"(\1.*\n)*?\1### END TODO {re.escape(todo)}$", re.M)
             assert stub.search(student), f"{name}: no stub for TODO {todo}"
+        outside = [line for line in path.read_text().split("\n") if line not in {l for _, b, _ in _source_blocks(path) for l in b}
+                   and not MARKER.search(line)]
+        student_lines = student.split("\n")
+        assert all(line in student_lines for line in outside), name
     assert {"1.1.1", "1.2.1", "1.3.1", "1.3.2", "1.3.3", "2.1.1", "2.2.1", "2.2.2", "2.2.3", "2.3.1"} <= seen
 
 
@@ -132,10 +138,6 @@ def test_no_answer_reaches_the_students_another_way(edition):
         if name.endswith((".py", ".ipynb", ".md", ".txt")):
             text = (edition / name).read_text(encoding="utf-8")
             assert not leaks.search(text), f"{name}: {leaks.search(text)[0]!r}"
-    learning_rate = re.compile(r"\b0\.0007\b|\b7e-0?4\b")  # the answer of 1.3.3
-    for name in _tree(edition):
-        if name.endswith((".py", ".ipynb")):
-            assert not learning_rate.search((edition / name).read_text(encoding="utf-8")), name
     student_tests = (edition / "tests" / "test_logreg.py").read_text()
     assert "def test_gradient_matches_the_closed_form" not in student_tests
     assert "def test_first_fit_step_is_the_summed_gradient_of_equation_7" not in student_tests
@@ -145,18 +147,19 @@ def test_no_answer_reaches_the_students_another_way(edition):
 
 
 def test_module_level_block_becomes_none_and_the_module_still_imports(edition):
-    text = (edition / "hwlib" / "policy_search.py").read_text()
-    assert re.search(r"^DEFAULT_LEARNING_RATE = None  # TODO 1\.3\.3: ", text, re.M)
+    text = (edition / "hwlib" / "settings.py").read_text()
+    assert re.search(r"^LEARNING_RATE = None  # TODO 1\.3\.3: ", text, re.M)
 
 
 def test_every_module_of_the_student_edition_imports(edition):
     modules = sorted(
         name for _, name, _ in pkgutil.walk_packages([str(edition / "hwlib")], prefix="hwlib.")
     )
-    assert "hwtools.grade" in modules and "instructor.release" not in modules
+    assert "hwlib.settings" in modules and not (edition / "instructor").exists()
     code = "import importlib, sys\nfor name in sys.argv[1:]:\n    importlib.import_module(name)\nimport hwlib\nprint(hwlib.__file__)"
     env = dict(os.environ, PYTHONPATH=str(edition), MPLBACKEND="Agg")
-    result = subprocess.run([sys.executable, "-c", code, "hwlib", *modules], cwd=edition, env=env, capture_output=True, text=True)
+    tools = ["hwtools", "hwtools.grade", "hwtools.report", "hwtools.todos"]
+    result = subprocess.run([sys.executable, "-c", code, "hwlib", *modules, *tools], cwd=edition, env=env, capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert Path(result.stdout.strip()).resolve().is_relative_to(edition.resolve())
 
@@ -180,8 +183,8 @@ def test_notebooks_are_valid_without_outputs_and_with_stubs(edition):
             if "BEGIN SOLUTION" not in source_text:
                 assert cell.source == source_text
             elif cell.cell_type == "code":
-                assert "# YOUR CODE HERE\nraise NotImplementedError()" in cell.source
-                assert re.search(r"^# TODO \d+(\.\d+)+: .+$", cell.source, re.M)
+                assert re.search(r"^### BEGIN TODO \d+(\.\d+)+\n# TODO \d+(\.\d+)+: .+$", cell.source, re.M)
+                assert re.search(r"^### END TODO \d+(\.\d+)+$", cell.source, re.M)
             else:
                 assert "YOUR ANSWER HERE" in cell.source
         stored = student_path.read_text(encoding="utf-8")
@@ -204,12 +207,13 @@ def test_keep_puts_solutions_back_and_everything_kept_equals_the_source(tmp_path
                             "2.1.1", "2.2.1", "2.2.2", "2.2.3", "2.3.1", "2.3.2"})
     files = student_files(REPO, keep=everything)
     for name in ("hwlib/cartpole.py", "hwlib/finite_diff.py", "hwlib/policy_search.py", "hwlib/logreg.py"):
-        source_lines = [line for line in (REPO / name).read_text().split("\n") if not MARKER.search(line)]
+        source_lines = [re.sub(r"SOLUTION", "TODO", line) for line in (REPO / name).read_text().split("\n")
+                        if not re.search(r"### (HINT|STUB):", line)]
         assert files[name][0].decode().split("\n") == source_lines
     partial = student_files(REPO, keep=frozenset({"1.2.1"}))
     finite_diff = partial["hwlib/finite_diff.py"][0].decode()
-    assert "NotImplementedError" not in finite_diff and "(2.0 * steps)" in finite_diff
-    assert "TODO 1.1.1" in partial["hwlib/cartpole.py"][0].decode()
+    assert "(2.0 * h[i])" in finite_diff and "### BEGIN TODO 1.2.1" in finite_diff
+    assert "# TODO 1.1.1: " in partial["hwlib/cartpole.py"][0].decode()
 
 
 # --------------------------------------------------------------------------------------------
@@ -302,19 +306,20 @@ def make_kit(root, module=MODULE, notebook_cells=NOTEBOOK_CELLS):
 
 def test_made_up_kit_student_edition(tmp_path):
     source = make_kit(tmp_path / "src")
-    build_student_edition(source, tmp_path / "out")
+    build_student_edition(source, tmp_path / "out", answer_key=False)
     names = sorted(_tree(tmp_path / "out"))
     assert names == ["README.md", "data/README.md", "hwlib/__init__.py", "hwlib/mod.py", "notebooks/nb.ipynb", "pyproject.toml", "tests/test_mod.py"]
     module = (tmp_path / "out" / "hwlib" / "mod.py").read_text()
     assert 'RATE = None  # TODO 1.3.3: ' in module
-    assert '    x = np.asarray(x)\n    raise NotImplementedError("TODO 1.1.1: multiply by two")\n\n' in module
-    assert '        if True:\n            raise NotImplementedError("TODO 1.2.1: ' in module
+    assert ("    x = np.asarray(x)\n    ### BEGIN TODO 1.1.1\n    # TODO 1.1.1: multiply by two\n    pass\n"
+            "    ### END TODO 1.1.1\n\n") in module
+    assert "        if True:\n            ### BEGIN TODO 1.2.1\n            # TODO 1.2.1: " in module
     assert "result = 2 * x" not in module and "return 3" not in module
     compile(module, "mod.py", "exec")
     notebook = nbformat.read(tmp_path / "out" / "notebooks" / "nb.ipynb", as_version=4)
-    assert notebook.cells[2].source == "# TODO 1.1.2: " + notebook.cells[2].source.split(": ", 1)[1].split("\n")[0] + (
-        "\n# YOUR CODE HERE\nraise NotImplementedError()\nprint('after')"
-    )
+    hint = notebook.cells[2].source.split(": ", 1)[1].split("\n")[0]
+    assert notebook.cells[2].source == (f"### BEGIN TODO 1.1.2\n# TODO 1.1.2: {hint}\n# YOUR CODE HERE\nraise NotImplementedError()\n"
+                                        "### END TODO 1.1.2\nprint('after')")
     assert notebook.cells[3].source == "Derive it.\nYOUR ANSWER HERE\nDone."
     assert all(cell.get("outputs", []) == [] for cell in notebook.cells)
     assert (tmp_path / "out" / "README.md").read_text().startswith("# The kit\n\n> **Student edition.**")
@@ -382,7 +387,7 @@ def test_hidden_tests_in_visible_test_files_are_dropped(tmp_path):
         "@pytest.mark.todo(\"1.1.1\")\n@pytest.mark.hidden  # instructor-only\ndef test_secret():\n    assert 2 + 2 == 4\n\n\n"
         "def test_also_visible():\n    pass\n\n\n@pytest.mark.hidden\nclass TestSecret:\n    def test_x(self):\n        pass\n"
     )
-    build_student_edition(source, tmp_path / "out")
+    build_student_edition(source, tmp_path / "out", answer_key=False)
     student = (tmp_path / "out" / "tests" / "test_mod.py").read_text()
     assert student == "import pytest\n\n\ndef test_visible():\n    pass\n\n\ndef test_also_visible():\n    pass\n"
 
@@ -404,7 +409,8 @@ def test_hidden_marks_that_cannot_be_dropped_are_an_error(tmp_path, text, line):
 
 def test_replacement_must_match_the_blocks(tmp_path):
     text = "def f():\n    ### BEGIN SOLUTION 1.1.1\n    return 1\n    ### END SOLUTION 1.1.1\n"
-    assert transform_python(text, "m.py", replace={"1.1.1": "return 2"}) == "def f():\n    return 2\n"
+    assert transform_python(text, "m.py", replace={"1.1.1": "return 2"}) == (
+        "def f():\n    ### BEGIN TODO 1.1.1\n    return 2\n    ### END TODO 1.1.1\n")
     with pytest.raises(ReleaseError, match="TODO 1.2.1 has 0 solution block"):
         transform_python(text, "m.py", replace={"1.2.1": "return 2"})
     with pytest.raises(ReleaseError, match="TODO 1.1.1 has 1 solution block.*but 2 replacement"):
@@ -416,7 +422,7 @@ def test_replacement_must_match_the_blocks(tmp_path):
 
 def test_command_line_refuses_to_overwrite_and_replaces_an_earlier_edition_with_force(tmp_path):
     source = make_kit(tmp_path / "src")
-    command = [sys.executable, "-m", "instructor.release", "student"]
+    command = [sys.executable, "-m", "instructor.release", "student", "--no-answer-key"]
     env = dict(os.environ, PYTHONPATH=str(REPO))
 
     def run(*args):

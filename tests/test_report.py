@@ -143,7 +143,8 @@ def _notebook(*cells):
 def test_the_derivation_is_the_markdown_under_the_2_1_1_heading():
     notebook = _notebook(
         "# Problem 2",
-        "The objective.\n\n### 2.1.1 The gradient\n<!-- BEGIN SOLUTION 2.1.1 -->\nStep 1: $a$\n#### a detail\n<!-- END SOLUTION 2.1.1 -->",
+        # The markers as the student edition has them (the release tool turns the instructor's into these).
+        "The objective.\n\n### 2.1.1 The gradient\n<!-- BEGIN TODO 2.1.1 -->\nStep 1: $a$\n#### a detail\n<!-- END TODO 2.1.1 -->",
         "More: $$b$$",
         "### Checking the gradient",
         "not this",
