@@ -23,10 +23,18 @@ from hwlib.cartpole import CartPoleLinearPolicy, make_env, run_episodes, run_pol
 from hwlib.landscape import GRID_SIZE, NUM_EPISODES, render_landscape, reward_slice
 from hwlib.plots.landscape import new_landscape_figure
 
+
+def first_balancing_theta(seed=0, num_candidates=400):
+    """A θ that balances on seeds 0-4, found by seeded random search (the kit ships none: that is 1.1.2)."""
+    candidates = np.random.default_rng(seed).uniform(-1.0, 1.0, size=(num_candidates, 4))
+    rewards = run_episodes(np.repeat(candidates, 5, axis=0), np.tile(np.arange(5), num_candidates)).reshape(-1, 5)
+    return candidates[np.flatnonzero(np.all(rewards == 500, axis=1))[0]]
+
+
 # Two slices of different cost: through a balancing θ (a large plateau of 500-step episodes) and
 # through the origin (most episodes end within a few dozen steps).
 THETAS = {
-    "through a balancing θ (0.01, -0.59, -0.89, -1.04)": np.array([0.01, -0.59, -0.89, -1.04]),
+    "through a balancing θ (found by random search)": first_balancing_theta(),
     "through the origin": np.zeros(4),
 }
 SUBSET_SEED = 0

@@ -176,12 +176,12 @@ class LandscapeFrame:
 
 
 def format_theta(theta):
-    """θ as the explorer writes it: '(0.01, -0.59, -0.89, -1.04)'."""
+    """θ as the explorer writes it: '(0.50, -1.25, 0.00, 2.00)'."""
     return "(" + ", ".join(f"{value + 0.0:.2f}" for value in theta) + ")"  # + 0.0: no "-0.00" for -0.0
 
 
 def landscape_caption(landscape):
-    """The explorer's line under the picture, e.g. 'θ₃ across, θ₄ up; through θ = (0.01, -0.59, -0.89, -1.04);
+    """The explorer's line under the picture, e.g. 'θ₃ across, θ₄ up; through θ = (0.50, -1.25, 0.00, 2.00);
     41 × 41 cells × 5 episodes each; 17% of the cells score 500 on every episode'."""
     horizontal, vertical = landscape.axes
     n = len(landscape.values)

@@ -117,8 +117,8 @@ from types import SimpleNamespace
 
 from hwlib import CartPoleLinearPolicy, settings
 
-# Stands in for the notebook's training run: a straight path from the origin to a balancing θ.
-params_history = np.linspace(np.zeros(4), [0.01, -0.59, -0.89, -1.04], 8)
+# Stands in for the notebook's training run: a straight path from the origin.
+params_history = np.linspace(np.zeros(4), [0.3, -0.4, 0.8, 0.2], 8)
 run = SimpleNamespace(policy=CartPoleLinearPolicy(params_history[-1]), params_history=params_history)"""
 
 

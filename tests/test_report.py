@@ -75,7 +75,7 @@ def _p1_values(**changes):
         "tried": {"my first guess": [0.1, -0.2, -1.0, -0.3], "pole angle only": [0, 0, -1, 0]},
         "random_rewards": [9.0, 11.0, 500.0, 30.0],
         "learning_rate": 0.0007,
-        "run": {"rewards": [9.4, 136.55, 500.0, 500.0], "policy.params": [0.0081, -0.5874, -0.8861, -1.0]},
+        "run": {"rewards": [9.4, 136.55, 500.0, 500.0], "policy.params": [0.0081, -0.5874, 0.8861, -1.0]},
         "sweep": {"learning_rates": [1e-4, 1e-3], "converged_fraction": [0.0, 0.95], "seeds": list(range(20)), "deadline": 7},
     }
     values.update(changes)
@@ -120,7 +120,7 @@ def test_the_answers_show_the_students_parameters_and_the_notebooks_numbers():
     assert "hand-tuned" not in text
     assert report.rewards_text([9.4, 136.25, 500]) == "9.4, 136.2, 500.0"
     assert f"- reward per iteration: {report.rewards_text(p1.training_rewards)}" in text
-    assert "- final parameters: **[0.008, -0.587, -0.886, -1.000]**" in text
+    assert "- final parameters: **[0.008, -0.587, 0.886, -1.000]**" in text
     assert "- converged (500 from then on) at iteration: **2** (deadline 7: met)" in text
     assert "- 1 of 4 random policies reached the maximum reward of 500: **25.0%**" in text
     assert "| converged | 0% | 95% |" in text
