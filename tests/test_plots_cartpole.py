@@ -1,10 +1,16 @@
+import io
+
+import matplotlib.image
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.text import Text
 
 from hwlib import CartPoleLinearPolicy, play_episode
-from hwlib.cartpole import BALANCING_PARAMS
-from hwlib.plots import draw_cartpole, plot_episode, plot_learning_rate_sweep, plot_reward_histogram, plot_training_curve
+from hwlib.cartpole import ALWAYS_RIGHT_PARAMS, MAX_EPISODE_REWARD
+from hwlib.plots import EpisodeView, draw_cartpole, figure_png, plot_episode, plot_learning_rate_sweep, plot_reward_histogram, plot_training_curve
+from hwlib.plots.cartpole import STEP_LIMIT_GID
 from hwlib.policy_search import SweepResult
 
 
@@ -29,8 +35,8 @@ def test_histogram_counts_every_policy():
 
 
 @pytest.mark.todo("1.1.1")
-def test_episode_figure_draws_the_thresholds_and_the_cart_where_it_is():
-    episode = play_episode(CartPoleLinearPolicy(BALANCING_PARAMS), seed=2)
+def test_episode_figure_draws_the_thresholds_and_the_cart_where_it_is(balancing_params):
+    episode = play_episode(CartPoleLinearPolicy(balancing_params), seed=2)
     figure = plot_episode(episode, step=10)
     position_ax, angle_ax, drawing_ax = figure.axes
     assert (2.4, 2.4) in _line_ydata(position_ax) and (-2.4, -2.4) in _line_ydata(position_ax)
@@ -38,6 +44,72 @@ def test_episode_figure_draws_the_thresholds_and_the_cart_where_it_is():
     cart = drawing_ax.patches[0]
     assert cart.get_x() + cart.get_width() / 2 == np.float64(episode.states[10, 0])
     assert drawing_ax.get_title() == "step 10 of 500"
+
+
+def _limit_marks_visible(ax):
+    """Whether the line and the label that mark the 500-step limit are shown."""
+    marks = [artist for artist in (*ax.get_lines(), *ax.texts) if artist.get_gid() == STEP_LIMIT_GID]
+    assert [type(mark) for mark in marks] == [Line2D, Text]
+    assert tuple(marks[0].get_xdata()) == (MAX_EPISODE_REWARD, MAX_EPISODE_REWARD)
+    assert marks[1].get_text().strip() == f"{MAX_EPISODE_REWARD}-step limit"
+    return [mark.get_visible() for mark in marks]
+
+
+@pytest.mark.todo("1.1.1")
+def test_time_axes_fit_a_short_failure_and_hide_the_500_limit():
+    episode = play_episode(CartPoleLinearPolicy(ALWAYS_RIGHT_PARAMS), seed=0)
+    assert episode.num_steps < 20
+    position_ax, angle_ax, drawing_ax = plot_episode(episode).axes
+    for ax in (position_ax, angle_ax):
+        left, right = ax.get_xlim()
+        assert left == 0 and episode.num_steps <= right <= 1.1 * max(episode.num_steps, 10), "the failure should fill the plot"
+        marks = _limit_marks_visible(ax)
+        assert len(marks) == 2 and not any(marks), "the 500-step limit is marked only when the episode reaches it"
+        assert all(float(tick).is_integer() for tick in ax.get_xticks())
+    assert drawing_ax.get_title() == f"step {episode.num_steps} of {episode.num_steps}: the pole fell past ±12°"
+
+
+@pytest.mark.todo("1.1.1")
+def test_time_axes_show_the_500_limit_when_reached_and_refit_when_reused(balancing_params):
+    view = EpisodeView()
+    long = play_episode(CartPoleLinearPolicy(balancing_params), seed=0)
+    short = play_episode(CartPoleLinearPolicy(ALWAYS_RIGHT_PARAMS), seed=0)
+    view.show(long)
+    assert long.num_steps == MAX_EPISODE_REWARD
+    assert MAX_EPISODE_REWARD < view.position_ax.get_xlim()[1] <= 1.1 * MAX_EPISODE_REWARD
+    assert _limit_marks_visible(view.position_ax) == [True, True] and _limit_marks_visible(view.angle_ax) == [True, True]
+    assert view.drawing.ax.get_title() == "step 500 of 500: reached the 500-step limit"
+    view.show(short, step=0)
+    assert view.angle_ax.get_xlim()[1] <= 1.1 * max(short.num_steps, 10)
+    assert not any(_limit_marks_visible(view.position_ax))
+    assert view.drawing.ax.get_title() == f"step 0 of {short.num_steps}"
+
+
+def test_episode_figure_is_opaque():
+    episode = play_episode(CartPoleLinearPolicy(ALWAYS_RIGHT_PARAMS), seed=0)
+    pixels = matplotlib.image.imread(io.BytesIO(figure_png(plot_episode(episode))))
+    assert pixels.shape[2] == 4 and np.all(pixels[..., 3] == 1.0)
+
+
+@pytest.mark.parametrize("step", [-1, 9, 2.0, True, "3"])
+def test_episode_view_rejects_a_step_outside_the_episode(step):
+    episode = play_episode(CartPoleLinearPolicy(ALWAYS_RIGHT_PARAMS), seed=0)
+    assert episode.num_steps == 8
+    with pytest.raises(ValueError, match="step must be None or a whole number from 0 to 8"):
+        EpisodeView().show(episode, step)
+
+
+def test_episode_view_rejects_what_is_not_an_episode():
+    with pytest.raises(TypeError, match="episode must be an hwlib.cartpole.Episode"):
+        EpisodeView().show(np.zeros((10, 4)))
+    with pytest.raises(ValueError, match="dpi must be"):
+        EpisodeView(dpi=0)
+
+
+@pytest.mark.parametrize("state", [[0.0, 0.0, 0.1], [0.0, np.nan, 0.0, 0.0], "state"])
+def test_drawing_rejects_a_bad_state(state):
+    with pytest.raises((ValueError, TypeError), match="state must"):
+        draw_cartpole(state)
 
 
 def test_drawing_tilts_the_pole_with_the_angle():

@@ -1,37 +1,86 @@
+"""The slider panel without a browser: ``render_panel``, the presets, and ``SliderPanel`` driven
+through its widgets' values and buttons, from one thread or two at once."""
+
+import io
+import threading
+
+import ipywidgets as widgets
+import matplotlib.image
 import numpy as np
 import pytest
 
-from hwlib import CartPoleLinearPolicy, run_policy
-from hwlib.cartpole import ALWAYS_LEFT_PARAMS, BALANCING_PARAMS
+from hwlib.cartpole import ALWAYS_LEFT_PARAMS, ALWAYS_RIGHT_PARAMS, MAX_EPISODE_REWARD, run_episodes
 from hwlib.plots.cartpole import EpisodeView
-from hwlib.widgets import PRESETS, SliderPanel, render_panel, reward_text, simulate_episode
+from hwlib.widgets import (
+    DEFAULT_PARAMS,
+    LANDSCAPE_BUTTON_LABEL,
+    PRESETS,
+    SLIDER_LABELS,
+    SLIDER_MAX,
+    SLIDER_MIN,
+    LatestOnly,
+    SliderPanel,
+    render_panel,
+    reward_text,
+    simulate_episode,
+    slider_grid_value,
+    slider_panel,
+)
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
+def kit_reward(params, seed):
+    """The reward from the kit's batch engine, which does not run the student's 1.1.1."""
+    return int(run_episodes(np.array([params], dtype=float), [seed])[0])
+
+
+def pixels(png):
+    return matplotlib.image.imread(io.BytesIO(bytes(png)))
+
+
+def opaque_share(png):
+    """The share of the image's pixels that are not fully transparent (a blank figure has 0)."""
+    image = pixels(png)
+    return float(np.mean(image[..., 3] > 0)) if image.shape[2] == 4 else 1.0
+
+
+def shows_state(panel):
+    """The panel's image and reward line are those of its controls' current values."""
+    params, seed, step = panel.params, panel.seed_box.value, panel.step_slider.value
+    expected = render_panel(params, seed, step=step)
+    assert np.array_equal(pixels(panel.image.value), pixels(expected.png)), f"the image is not that of {params}, seed {seed}, step {step}"
+    assert f"Total reward: {kit_reward(params, seed)} " in panel.reward_label.value
+    return True
+
+
+# --- render_panel, the plain function -------------------------------------------------------
+
+
 @pytest.mark.todo("1.1.1")
-def test_render_panel_plays_the_episode_and_draws_it():
-    frame = render_panel(BALANCING_PARAMS, seed=0)
-    assert frame.episode.total_reward == 500
+def test_render_panel_plays_the_episode_and_draws_it(balancing_params):
+    frame = render_panel(balancing_params, seed=0)
+    assert frame.episode.total_reward == 500 and frame.step == 500
     assert frame.reward_text == "Total reward: 500 (the maximum)"
-    assert frame.png.startswith(PNG_SIGNATURE)
+    assert frame.png.startswith(PNG_SIGNATURE) and opaque_share(frame.png) == 1.0
 
 
 @pytest.mark.todo("1.1.1")
-def test_render_panel_reward_is_the_librarys_reward():
-    params = (0.5, -0.3, -1.2, 0.4)
-    frame = render_panel(params, seed=4)
-    expected = run_policy(CartPoleLinearPolicy(params), seed=4)
-    assert frame.reward_text == f"Total reward: {int(expected)}"
+@pytest.mark.parametrize(("params", "seed"), [((0.5, -0.3, -1.2, 0.4), 4), (ALWAYS_RIGHT_PARAMS, 0), ((0.0, 0.0, 0.0, -0.2), 0)])
+def test_render_panel_reward_is_the_kits_reward(params, seed):
+    frame = render_panel(params, seed=seed)
+    assert frame.reward_text.startswith(f"Total reward: {kit_reward(params, seed)} (")
 
 
 @pytest.mark.todo("1.1.1")
-def test_render_panel_redraws_the_same_view_differently_for_other_params():
+def test_render_panel_redraws_the_same_view_differently_for_other_params(balancing_params):
     view = EpisodeView()
-    balanced = render_panel(BALANCING_PARAMS, seed=0, view=view)
+    balanced = render_panel(balancing_params, seed=0, view=view)
     falling = render_panel(ALWAYS_LEFT_PARAMS, seed=0, view=view)
     assert balanced.png != falling.png
     assert balanced.episode.num_steps == 500 and falling.episode.num_steps < 20
+    # The reused view draws what a new one draws.
+    assert np.array_equal(pixels(falling.png), pixels(render_panel(ALWAYS_LEFT_PARAMS, seed=0).png))
 
 
 @pytest.mark.todo("1.1.1")
@@ -41,51 +90,361 @@ def test_step_moves_only_the_picture():
     start = render_panel(ALWAYS_LEFT_PARAMS, 0, step=0, view=view, episode=episode)
     end = render_panel(ALWAYS_LEFT_PARAMS, 0, view=view, episode=episode)
     assert start.reward_text == end.reward_text
+    assert (start.step, end.step) == (0, episode.num_steps)
     assert start.png != end.png
 
 
-@pytest.mark.parametrize(("params", "seed"), [([1, 2, 3], 0), ([0, 0, np.nan, 0], 0), (BALANCING_PARAMS, -1)])
-def test_render_panel_rejects_bad_controls(params, seed):
-    with pytest.raises(ValueError, match="params must|seed must"):
-        render_panel(params, seed)
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"params": [1, 2, 3], "seed": 0}, ValueError, "params must have shape"),
+        ({"params": [0, 0, np.nan, 0], "seed": 0}, ValueError, "params must hold only finite"),
+        ({"params": "abcd", "seed": 0}, TypeError, "params must be an array of numbers"),
+        ({"params": ALWAYS_LEFT_PARAMS, "seed": -1}, ValueError, "seed must be a non-negative integer"),
+        ({"params": ALWAYS_LEFT_PARAMS, "seed": 1.5}, ValueError, "seed must be a non-negative integer"),
+        ({"params": ALWAYS_LEFT_PARAMS, "seed": 0, "step": 12}, ValueError, "step must be None or a whole number from 0 to 11"),
+        ({"params": ALWAYS_LEFT_PARAMS, "seed": 0, "step": -1}, ValueError, "step must be None or a whole number"),
+        ({"params": ALWAYS_LEFT_PARAMS, "seed": 0, "step": 2.5}, ValueError, "step must be None or a whole number"),
+        ({"params": ALWAYS_LEFT_PARAMS, "seed": 0, "view": "figure"}, TypeError, "view must be an hwlib.plots.cartpole.EpisodeView"),
+        ({"params": ALWAYS_LEFT_PARAMS, "seed": 0, "episode": [1, 2]}, TypeError, "episode must be an hwlib.cartpole.Episode"),
+    ],
+)
+def test_render_panel_rejects_bad_controls(kwargs, error, message):
+    with pytest.raises(error, match=message):
+        render_panel(**kwargs)
 
 
 @pytest.mark.todo("1.1.1")
-def test_reward_text_marks_only_the_maximum():
-    falling = simulate_episode(ALWAYS_LEFT_PARAMS, 0)
-    assert reward_text(falling) == f"Total reward: {int(falling.total_reward)}"
-    assert reward_text(simulate_episode(BALANCING_PARAMS, 0)) == "Total reward: 500 (the maximum)"
+def test_reward_text_says_why_the_episode_ended(balancing_params):
+    assert reward_text(simulate_episode(ALWAYS_LEFT_PARAMS, 0)) == "Total reward: 11 (the pole fell past ±12°)"
+    assert reward_text(simulate_episode((0.0, 0.0, 0.0, -0.2), 0)) == "Total reward: 142 (the cart ran off the track past ±2.4 m)"
+    assert reward_text(simulate_episode(balancing_params, 0)) == "Total reward: 500 (the maximum)"
+    with pytest.raises(TypeError, match="episode must be"):
+        reward_text(500)
+
+
+# --- presets and the sliders' grid ---------------------------------------------------------------
+
+
+def test_presets_are_the_two_that_fail_and_none_balances():
+    assert PRESETS == {"always left": (0.0, 0.0, 0.0, 0.0), "always right": (0.0, -1.0, 0.0, 1.0)}
+    seeds = list(range(5))
+    for name, params in PRESETS.items():
+        rewards = run_episodes(np.repeat([params], len(seeds), axis=0), seeds)
+        assert rewards.max() < MAX_EPISODE_REWARD, f"the preset {name!r} balances the pole: it hands over 1.1.2's answer"
+    assert kit_reward(DEFAULT_PARAMS, 0) < MAX_EPISODE_REWARD
+
+
+def test_presets_lie_on_the_sliders_grid():
+    for params in PRESETS.values():
+        assert all(slider_grid_value(value) == value for value in params)
+
+
+def test_slider_grid_value_is_what_the_browser_sends_back():
+    # ipywidgets' slider (noUiSlider) turns -0.1 into 47.5 % of [-2, 2] and back into 1.9 - 2.
+    assert slider_grid_value(-0.1) == 1.9 - 2 == -0.10000000000000009
+    assert slider_grid_value(0.123) == slider_grid_value(0.12)
+    grid = [slider_grid_value(SLIDER_MIN + k * 0.01) for k in range(401)]
+    assert grid[0] == SLIDER_MIN and grid[-1] == SLIDER_MAX and np.all(np.diff(grid) > 0.0099)
+    assert all(slider_grid_value(value) == value for value in grid), "a grid value must stay where it is"
+
+
+# --- the panel -----------------------------------------------------------------------------------
+
+
+def walk(widget):
+    yield widget
+    for child in getattr(widget, "children", ()):
+        yield from walk(child)
+
+
+def test_panel_names_every_control_and_gives_each_a_tooltip():
+    panel = SliderPanel()
+    assert [slider.description for slider in panel.param_sliders] == list(SLIDER_LABELS) == [
+        "θ₁ · cart position [m]", "θ₂ · cart velocity [m/s]", "θ₃ · pole angle [rad]", "θ₄ · pole angular velocity [rad/s]",
+    ]
+    assert panel.step_slider.description == "time step"
+    assert panel.landscape_button.description == LANDSCAPE_BUTTON_LABEL == "Show θ in the landscape"
+    shown = list(walk(panel.widget))
+    # Every widget but the boxes and the image (ipywidgets 8 cannot show an Image with a tooltip):
+    # θ sliders, seed, presets, landscape button, reward, play, time step.
+    controls = [w for w in shown if not isinstance(w, (widgets.Box, widgets.Image))]
+    assert len(controls) == 4 + 1 + 2 + 1 + 1 + 1 + 1
+    for control in controls:
+        # A missing tooltip reads "null" in the browser.
+        assert isinstance(control.tooltip, str) and len(control.tooltip) > 10, f"{type(control).__name__}: tooltip {control.tooltip!r}"
+    assert panel.play.description == "", "a Play shows its tooltip only without a description"
+    assert panel.image.tooltip is None
+    assert all(slider.min <= -2 and slider.max >= 2 and slider.step == 0.01 for slider in panel.param_sliders)
+
+
+def test_play_is_linked_to_the_time_step_in_the_browser():
+    panel = SliderPanel(ALWAYS_RIGHT_PARAMS)
+    link = panel.play_link
+    assert type(link).__name__ == "Link", "the Play control must move the time step slider by a jslink (in the browser)"
+    assert link.source == (panel.play, "value") and link.target == (panel.step_slider, "value")
+    assert isinstance(panel.play, widgets.Play) and panel.play in list(walk(panel.widget))
+    assert panel.play.min == 0 and panel.play.max == panel.step_slider.max == panel.episode.num_steps == 8
+
+
+@pytest.mark.todo("1.1.1")
+def test_panel_starts_from_a_failing_policy():
+    panel = SliderPanel()
+    assert panel.params == DEFAULT_PARAMS
+    assert f"Total reward: {kit_reward(DEFAULT_PARAMS, 0)} (" in panel.reward_label.value
+    assert kit_reward(DEFAULT_PARAMS, 0) < MAX_EPISODE_REWARD
+    assert bytes(panel.image.value).startswith(PNG_SIGNATURE) and shows_state(panel)
 
 
 @pytest.mark.todo("1.1.1")
 def test_panel_responds_to_sliders_seed_and_presets():
-    panel = SliderPanel(BALANCING_PARAMS, seed=0)
-    assert "Total reward: 500" in panel.reward_label.value
-    assert bytes(panel.image.value).startswith(PNG_SIGNATURE)
-
-    panel.param_sliders[2].value = 1.0  # the pole-angle weight flipped: the pole falls
-    expected = run_policy(CartPoleLinearPolicy(panel.params), seed=0)
-    assert f"Total reward: {int(expected)}" in panel.reward_label.value and expected < 500
+    panel = SliderPanel(ALWAYS_LEFT_PARAMS, seed=0)
+    panel.param_sliders[3].value = -0.2  # the weight on the pole's angular velocity: the cart now runs off
+    assert "Total reward: 142 " in panel.reward_label.value and shows_state(panel)
 
     panel.seed_box.value = 3
-    assert f"Total reward: {int(run_policy(CartPoleLinearPolicy(panel.params), seed=3))}" in panel.reward_label.value
+    assert shows_state(panel)
 
-    left_button = next(button for button in panel.preset_buttons if button.description == "always left")
-    left_button.click()
-    assert panel.params == PRESETS["always left"]
-    assert f"Total reward: {int(run_policy(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=3))}" in panel.reward_label.value
+    right_button = next(button for button in panel.preset_buttons if button.description == "always right")
+    right_button.click()
+    assert panel.params == PRESETS["always right"] and shows_state(panel)
 
 
 @pytest.mark.todo("1.1.1")
-def test_panel_step_slider_spans_the_episode_and_redraws():
+def test_panel_time_step_spans_the_episode_and_redraws():
     panel = SliderPanel(ALWAYS_LEFT_PARAMS, seed=0)
-    assert panel.step_slider.max == panel.episode.num_steps == panel.step_slider.value
+    assert panel.step_slider.max == panel.episode.num_steps == panel.step_slider.value == 11
     before = panel.image.value
     panel.step_slider.value = 0
-    assert panel.image.value != before
+    assert panel.image.value != before and shows_state(panel)
+    panel.param_sliders[3].value = -0.2  # a new episode is shown at its end, and the time step spans it
+    assert panel.step_slider.value == panel.step_slider.max == panel.play.max == 142 and shows_state(panel)
+    assert panel.play.step == 2  # at most ~100 frames per episode when played
+
+
+def test_panel_validates_its_arguments():
+    with pytest.raises(ValueError, match=r"params must lie within the sliders' range \[-2, 2\]"):
+        SliderPanel((0.0, 0.0, 3.0, 0.0))
+    with pytest.raises(ValueError, match="params must have shape"):
+        SliderPanel((0.0, 0.0))
+    with pytest.raises(ValueError, match="seed must be"):
+        SliderPanel(seed=-3)
+    with pytest.raises(ValueError, match="seed must be below"):
+        SliderPanel(seed=2**31)
+    panel = SliderPanel()
+    with pytest.raises(ValueError, match="params must lie within"):
+        panel.set_params((0.0, -2.5, 0.0, 0.0))
+    with pytest.raises(TypeError, match="callback must be callable"):
+        panel.on_send_params("landscape")
 
 
 @pytest.mark.todo("1.1.1")
-def test_sliders_cover_at_least_minus_two_to_two():
+def test_panel_puts_given_params_on_the_grid():
+    panel = SliderPanel((0.123, -0.1, 0.0, 1.0))
+    assert panel.params == (slider_grid_value(0.12), slider_grid_value(-0.1), 0.0, 1.0)
+
+
+@pytest.mark.todo("1.1.1")
+def test_a_preset_replays_the_episode_once(monkeypatch):
+    panel = SliderPanel(ALWAYS_RIGHT_PARAMS)
+    played = []
+    monkeypatch.setattr("hwlib.widgets.simulate_episode", lambda params, seed: played.append(params) or simulate_episode(params, seed))
+    panel.preset_buttons[0].click()
+    assert played == [PRESETS["always left"]] and shows_state(panel)
+
+
+@pytest.mark.todo("1.1.1")
+def test_an_error_in_a_callback_is_shown_and_the_panel_recovers(monkeypatch):
     panel = SliderPanel()
-    assert all(slider.min <= -2 and slider.max >= 2 for slider in panel.param_sliders)
+
+    def broken(params, seed):
+        raise NotImplementedError("TODO 1.1.1")
+
+    with monkeypatch.context() as patch:
+        patch.setattr("hwlib.widgets.simulate_episode", broken)
+        panel.param_sliders[0].value = 0.5
+        assert "Could not play the episode" in panel.reward_label.value and "TODO 1.1.1" in panel.reward_label.value
+    panel.param_sliders[0].value = 0.25
+    assert shows_state(panel)
+
+
+# --- no race: one redraw at a time, and always one after the last change -------------------------
+
+
+def count_draws(panel, on_draw=None):
+    """Wrap the panel's figure so every draw is counted, and overlapping draws are caught."""
+    state = {"draws": 0, "inside": 0, "most_inside": 0}
+    lock = threading.Lock()
+    show = panel.view.show
+
+    def counted_show(episode, step=None):
+        with lock:
+            state["draws"] += 1
+            state["inside"] += 1
+            state["most_inside"] = max(state["most_inside"], state["inside"])
+        try:
+            if on_draw is not None:
+                on_draw(state["draws"])
+            return show(episode, step)
+        finally:
+            with lock:
+                state["inside"] -= 1
+
+    panel.view.show = counted_show
+    return state
+
+
+@pytest.mark.todo("1.1.1")
+def test_two_threads_at_once_never_draw_together_and_the_last_state_is_shown():
+    panel = SliderPanel(ALWAYS_RIGHT_PARAMS)
+    # Each draw yields the processor for a moment, so the other thread's changes land mid-draw.
+    state = count_draws(panel, on_draw=lambda _draws: threading.Event().wait(0.002))
+    start = threading.Barrier(2)
+    errors = []
+
+    def clicks():
+        start.wait()
+        for index in range(30):
+            panel.preset_buttons[index % 2].click()
+
+    def moves():
+        start.wait()
+        rng = np.random.default_rng(0)
+        for index in range(30):
+            panel.param_sliders[index % 4].value = slider_grid_value(float(rng.uniform(-1, 1)))
+            panel.step_slider.value = int(rng.integers(0, panel.step_slider.max + 1))
+            panel.seed_box.value = index % 3
+
+    def run(work):
+        try:
+            work()
+        except Exception as error:  # noqa: BLE001 (reported by the main thread)
+            errors.append(error)
+
+    threads = [threading.Thread(target=run, args=(work,)) for work in (clicks, moves)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert not errors, errors
+    assert state["most_inside"] == 1, "two redraws of the panel overlapped"
+    assert state["draws"] > 0
+    assert opaque_share(panel.image.value) == 1.0, "the panel's figure went (partly) transparent"
+    assert shows_state(panel)
+
+
+@pytest.mark.todo("1.1.1")
+def test_changes_during_a_draw_are_drawn_once_more_with_the_latest_values():
+    panel = SliderPanel(ALWAYS_LEFT_PARAMS)
+    in_first_draw, release = threading.Event(), threading.Event()
+
+    def hold_first(draws):
+        if draws == 1:
+            in_first_draw.set()
+            assert release.wait(30), "the test never released the first draw"
+
+    state = count_draws(panel, on_draw=hold_first)
+    drawer = threading.Thread(target=lambda: setattr(panel.param_sliders[3], "value", -0.2))
+    drawer.start()
+    assert in_first_draw.wait(30)
+    # Three changes while the first draw is under way: each returns at once, none draws.
+    panel.seed_box.value = 1
+    panel.set_params(ALWAYS_RIGHT_PARAMS)
+    panel.seed_box.value = 2
+    assert state["draws"] == 1
+    release.set()
+    drawer.join(30)
+    assert state["draws"] == 2, "the three changes should cost one more draw, with the latest values"
+    assert (panel.params, panel.seed_box.value) == (PRESETS["always right"], 2) and shows_state(panel)
+
+
+@pytest.mark.todo("1.1.1")
+def test_presets_from_two_threads_never_mix():
+    panel = SliderPanel(PRESETS["always left"])
+    in_right, left_done = threading.Event(), threading.Event()
+
+    def pause_right_halfway(change):
+        # Thread "right" has written θ₂ but not yet θ₄: let thread "left" run its whole preset now.
+        if threading.current_thread().name == "right":
+            in_right.set()
+            left_done.wait(0.5)  # "left" can only finish first if presets can interleave
+
+    panel.param_sliders[1].observe(pause_right_halfway, names="value")
+    right = threading.Thread(target=panel.set_params, args=(PRESETS["always right"],), name="right")
+    right.start()
+    assert in_right.wait(30)
+    left = threading.Thread(target=lambda: (panel.set_params(PRESETS["always left"]), left_done.set()), name="left")
+    left.start()
+    right.join(30)
+    left.join(30)
+    assert panel.params in PRESETS.values(), f"the sliders show half of one preset and half of the other: {panel.params}"
+    assert panel.params == PRESETS["always left"], "the preset set last should be shown"
+    assert shows_state(panel)
+
+
+def test_latest_only_holds_requests_until_the_block_ends():
+    draws = []
+    redraws = LatestOnly(lambda: draws.append(len(draws)))
+    with redraws.held():
+        redraws.request()
+        redraws.request()
+        assert draws == []
+    assert draws == [0]
+    redraws.request()
+    assert draws == [0, 1]
+
+
+def test_latest_only_recovers_after_a_failing_draw():
+    calls = []
+
+    def draw():
+        calls.append(None)
+        if len(calls) == 1:
+            raise RuntimeError("first draw fails")
+
+    redraws = LatestOnly(draw)
+    with pytest.raises(RuntimeError, match="first draw fails"):
+        redraws.request()
+    redraws.request()
+    assert len(calls) == 2
+
+
+# --- the hook for the landscape view -----------------------------------------------------------
+
+
+def test_show_in_landscape_sends_the_current_params_to_every_listener():
+    panel = SliderPanel(ALWAYS_RIGHT_PARAMS)
+    assert panel.landscape_button.disabled, "with no landscape view connected the button does nothing, so it is disabled"
+    first, second = [], []
+
+    def listener(params):
+        first.append(params)
+
+    assert panel.on_send_params(listener) is listener
+    panel.on_send_params(second.append)
+    assert not panel.landscape_button.disabled and "landscape" in panel.landscape_button.tooltip
+    panel.param_sliders[0].value = 0.25
+    panel.landscape_button.click()
+    assert first == second == [(0.25, -1.0, 0.0, 1.0)]
+    assert all(type(value) is float for value in first[0])
+
+
+def test_every_listener_is_called_even_if_one_fails():
+    panel = SliderPanel()
+    called = []
+
+    def failing(params):
+        raise RuntimeError("landscape broke")
+
+    panel.on_send_params(failing)
+    panel.on_send_params(called.append)
+    with pytest.raises(RuntimeError, match="landscape broke"):
+        panel.send_params()
+    assert called == [DEFAULT_PARAMS]
+
+
+def test_slider_panel_returns_a_panel_that_displays_as_its_widget():
+    panel = slider_panel()
+    assert isinstance(panel, SliderPanel)
+    bundle = panel._repr_mimebundle_()
+    assert bundle["application/vnd.jupyter.widget-view+json"]["model_id"] == panel.widget.model_id
