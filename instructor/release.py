@@ -1,6 +1,7 @@
 """Build the student edition of the kit from the instructor's kit (the one source of truth).
 
     python -m instructor.release student OUT_DIR [--source KIT_DIR] [--force] [--keep TODO ...]
+    python -m instructor.release gradescope OUT.zip [--source KIT_DIR] [--force]   (see instructor/gradescope.py)
 
 Solution code is fenced, in ``hwlib`` and in the notebooks' code cells, by comment lines
 
@@ -58,6 +59,8 @@ INSTRUCTOR_ONLY = (
     "instructor/",  # the release tool, hidden checks, wrong solutions: one folder
     "tests/test_release.py",
     "tests/test_grading.py",
+    "tests/test_classroom.py",  # classes built from the wrong solutions and cheats, graded against the reference
+    "tests/test_gradescope.py",
     "tests/test_student_edition.py",
     "tests/hidden/",
     "tests/wrong_solutions/",
@@ -67,6 +70,7 @@ INSTRUCTOR_ONLY = (
     "benchmarks/bench_logreg.py",
     "benchmarks/requirements-bench.txt",
     "benchmarks/bench_grading.py",  # it grades against the reference solution
+    "benchmarks/bench_classroom.py",
 )
 
 ANSWER_KEY = "hwtools/grade/answer_key.json"  # written by the build: the visible checks' expected values
@@ -561,7 +565,12 @@ def main(argv=None):
     student.add_argument("--keep", action="append", default=[], metavar="TODO", help="keep this TODO's solution (for checking the tests)")
     student.add_argument("--no-answer-key", action="store_true",
                          help="skip the grader's answer key (then the student edition's grader has nothing to compare with)")
+    from instructor import gradescope  # noqa: PLC0415 - the Gradescope bundle: instructor/gradescope.py
+
+    gradescope.add_parser(commands, Path(__file__).resolve().parents[1])
     args = parser.parse_args(argv)
+    if args.edition == "gradescope":
+        return args.run(args)
     unknown = [todo for todo in args.keep if todo not in TODO_BY_ID]
     if unknown:
         parser.error(f"unknown TODO id(s) for --keep: {', '.join(unknown)}")

@@ -1,4 +1,6 @@
-"""Command line: ``python -m hwtools.grade [SUBMISSION_DIR] [--reference KIT_DIR] [--json FILE] [--todo ID]``."""
+"""Command line: ``python -m hwtools.grade [SUBMISSION_DIR] [--reference KIT_DIR] [--json FILE] [--todo ID]``,
+or for a class ``python -m hwtools.grade SUBMISSIONS_DIR --gradebook grades.csv --feedback FEEDBACK_DIR [--jobs N]``
+(a folder without ``hwlib/``: one folder or .zip per student; see ``classroom``)."""
 
 from __future__ import annotations
 
@@ -20,7 +22,10 @@ def main(argv=None):
                     "never decides its own points: each TODO is checked with the submission's code for that TODO "
                     "and the reference solution for the others.")
     parser.add_argument("submission", nargs="?", default=str(KIT_ROOT),
-                        help="the kit to grade (a folder with hwlib/; default: this kit)")
+                        help="the kit to grade (a folder with hwlib/; default: this kit), or a folder of submissions "
+                             "(one folder or .zip per student, named by student id) with --gradebook and --feedback")
+    parser.add_argument("--gradebook", metavar="FILE.csv", help="a class: write the gradebook here (one row per student)")
+    parser.add_argument("--feedback", metavar="FOLDER", help="a class: write one Markdown feedback file per student here")
     parser.add_argument("--reference", metavar="KIT_DIR",
                         help="the instructor's kit to grade against (default: this kit if it holds the solutions, "
                              "else the student edition's answer key: visible checks only)")
@@ -35,7 +40,9 @@ def main(argv=None):
                         help=f"wall-clock and CPU limit per TODO's run (default {DEFAULT_TIME_LIMIT:g})")
     parser.add_argument("--memory-limit", type=int, default=DEFAULT_MEMORY_LIMIT // 2**20, metavar="MIB",
                         help=f"address-space limit per run in MiB (default {DEFAULT_MEMORY_LIMIT // 2**20})")
-    parser.add_argument("--jobs", type=int, default=None, help="runs side by side (default: up to 4, one per CPU)")
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="one kit: its runs side by side (default: up to 4, one per CPU); a class: submissions "
+                             "graded side by side, one sandbox each (default: one per CPU)")
     parser.add_argument("--brief", action="store_true", help="only the table, without the checks of each TODO")
     args = parser.parse_args(argv)
     unknown = [todo for todo in args.todo or () if todo not in TODO_BY_ID]
@@ -43,7 +50,13 @@ def main(argv=None):
         parser.error(f"unknown TODO id(s): {', '.join(unknown)}; the handout's are {', '.join(TODO_BY_ID)}")
     submission = Path(args.submission)
     if not (submission / "hwlib").is_dir():
+        if submission.is_dir():
+            from hwtools.grade import classroom  # noqa: PLC0415 - a folder of submissions
+
+            return classroom.main(args, parser)
         parser.error(f"{submission}: no hwlib/ folder; give the folder of a kit")
+    if args.gradebook or args.feedback:
+        parser.error(f"{submission} is a kit (it has hwlib/); --gradebook and --feedback are for a folder of submissions")
     reference = args.reference
     if reference is None and args.answer_key is None and has_solutions(KIT_ROOT):
         reference = KIT_ROOT

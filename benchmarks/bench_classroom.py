@@ -1,0 +1,88 @@
+"""Class grading benchmark: seconds per submission and for a class of 30, with 1 and 2 jobs, and an
+estimate for a class of 300.
+
+Run from the kit's root:  .venv/bin/python benchmarks/bench_classroom.py [--submissions 30] [--jobs 1 2]
+
+Every submission is a zip (the kit one folder down, as a student zips their folder) whose blocks
+hold the reference's code plus a comment of the submission's own, so that no TODO's kit matches
+one the grader has run before: every TODO's sandboxed run happens, as in a real class where no
+two students write the same code. Each setting starts from a new ``Grader`` and an empty saved
+state. "first" is the first submission, which also computes the reference's answers (once per
+class); the class's seconds come after it, graded by ``grade_class`` as the command line does.
+
+The machine is shared while the kit is being built, so the numbers are noisy: the load average
+is printed with them; the README gives the ones measured at the end.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+
+from hwtools.grade import AUTO_POINTS, Grader, blocks, classroom
+
+KIT = Path(__file__).resolve().parents[1]
+
+
+def make_class(layout, folder, count, tag):
+    """``count`` zipped submissions, each with code of its own in every block."""
+    reference = layout.reference_bodies()
+    folder.mkdir(parents=True)
+    for number in range(count):
+        student = f"{tag}-{number:03d}"
+        bodies = {todo: ["\n".join(body) + f"\n# {student}" for body in found] for todo, found in reference.items()}
+        with tempfile.TemporaryDirectory() as scratch:
+            kit = blocks.write_submission(layout, Path(scratch) / "hw1", bodies)
+            with zipfile.ZipFile(folder / f"{student}.zip", "w", compression=zipfile.ZIP_DEFLATED) as archive:
+                for path in sorted(kit.rglob("*.py")):
+                    archive.write(path, path.relative_to(kit.parent).as_posix())
+    return folder
+
+
+def bench(layout, workdir, count, jobs):
+    grader = Grader(KIT, jobs=1)
+    first = make_class(layout, workdir / f"first-{jobs}", 1, f"first{jobs}")
+    started = time.perf_counter()
+    report = classroom.grade_class(first, workdir / f"first-{jobs}.csv", workdir / f"first-{jobs}-feedback",
+                                   grader=grader, jobs=1)
+    first_seconds = time.perf_counter() - started
+    assert report.students[0].auto_total == AUTO_POINTS, report.students[0].status
+    folder = make_class(layout, workdir / f"class-{jobs}", count, f"j{jobs}")
+    started = time.perf_counter()
+    report = classroom.grade_class(folder, workdir / f"class-{jobs}.csv", workdir / f"class-{jobs}-feedback",
+                                   grader=grader, jobs=jobs)
+    seconds = time.perf_counter() - started
+    assert report.graded_now == count and all(s.auto_total == AUTO_POINTS for s in report.students)
+    return grader.sandbox, first_seconds, seconds
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--submissions", type=int, default=30, help="submissions in the class (default 30)")
+    parser.add_argument("--jobs", type=int, nargs="+", default=[1, 2], help="settings of --jobs (default: 1 2)")
+    args = parser.parse_args()
+    if args.submissions < 1 or any(jobs < 1 for jobs in args.jobs):
+        parser.error("--submissions and --jobs must be at least 1")
+    layout = blocks.load_layout(KIT)
+    load = os.getloadavg()
+    print(f"{os.cpu_count()} CPU(s), load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
+          "(a shared machine: the numbers are noisy)")
+    print(f"{'sandbox':<8} {'jobs':>4}  {'first (+reference)':>18}  {f'class of {args.submissions}':>12}  "
+          f"{'per submission':>14}  {'estimate for 300':>16}")
+    with tempfile.TemporaryDirectory(prefix="bench-classroom-") as workdir:
+        for jobs in args.jobs:
+            box, first, seconds = bench(layout, Path(workdir), args.submissions, jobs)
+            per = seconds / args.submissions
+            estimate = first + 300 * per
+            print(f"{'bwrap' if box.isolated else 'none':<8} {jobs:>4}  {first:>17.1f}s  {seconds:>11.1f}s  "
+                  f"{per:>13.2f}s  {estimate / 60:>13.1f} min")
+    load = os.getloadavg()
+    print(f"load average at the end {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
+
+
+if __name__ == "__main__":
+    main()

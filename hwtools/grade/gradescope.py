@@ -1,0 +1,183 @@
+"""Gradescope's autograder: grade the submission in ``/autograder/submission`` and write
+``/autograder/results/results.json``. The bundle's ``run_autograder`` runs
+
+    python -m hwtools.grade.gradescope [--root /autograder]
+
+(built by ``python -m instructor.release gradescope OUT.zip``). The root comes from ``--root``, else
+the environment variable ``AUTOGRADER_ROOT``, else ``/autograder``; under it ``source/`` is the
+instructor's kit (the reference and the hidden checks), ``submission/`` the student's files,
+``results/results.json`` the output. ``AUTOGRADER_TIME_LIMIT`` sets the seconds per TODO's run.
+
+The submission is read as a class's submissions are (``classroom.open_submission``: a folder or a
+zip holding ``hwlib/``, at the top or a folder or two down, or the bare library files; links,
+unsafe paths and oversized files refused) and graded by the sandboxed ``Grader``.
+
+``results.json`` (Gradescope's schema) gives per TODO with automatic points two tests:
+
+* ``<id> <title>: visible inputs``: ``visible``, 0 points; what each check gives on the inputs
+  the students can see, and the first failing visible input with the expected and actual value.
+  Shown at once, it says what to fix and nothing about the hidden inputs;
+* ``<id> <title>``: ``after_published``, the TODO's points; every check, on visible and hidden
+  inputs (hidden inputs are never shown, only that a check failed on one).
+
+The top-level ``score`` is the automatic total; the points graded by hand are left to Gradescope's
+own rubric. ``stdout`` (the full text report, for the instructor) is ``hidden``.
+
+Once the reference and the hidden checks are in memory, the bundle's copies of ``hwlib/`` and
+``instructor/`` are deleted from ``source/`` (only where the bundle's marker file says it is the
+bundle: Gradescope gives every submission a fresh container), so that student code run without
+the sandbox (where bubblewrap cannot create namespaces) finds no reference to read on disk.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+from hwtools.grade import blocks
+from hwtools.grade.classroom import (
+    UNGRADED_HELP,
+    Unusable,
+    kit_file_names,
+    md_escape,
+    open_submission,
+    status_of,
+    todo_markdown,
+)
+from hwtools.grade.feedback import render
+from hwtools.grade.grader import Grader, GradingError
+from hwtools.grade.sandbox import DEFAULT_TIME_LIMIT
+from hwtools.todos import TODOS
+
+BUNDLE_MARKER = "hwgrade-bundle.json"  # at the root of the bundle's source: written by instructor/gradescope.py
+SCRUBBED = ("hwlib", "instructor")  # deleted from the bundle's source once loaded
+
+
+def autograder_paths(root=None):
+    root = Path(root or os.environ.get("AUTOGRADER_ROOT") or "/autograder")
+    return {"root": root, "source": root / "source", "submission": root / "submission",
+            "results": root / "results" / "results.json"}
+
+
+def _points(value):
+    return float(round(value, 2))
+
+
+def _tests(result):
+    tests = []
+    by_id = {entry["id"]: entry for entry in result["todos"]} if result else {}
+    for todo in TODOS:
+        if not todo.auto:
+            continue
+        entry = by_id.get(todo.id)
+        name = f"{todo.id} {todo.title}"
+        if entry is None:  # nothing was graded: the points test only, at 0
+            tests.append({"name": name, "number": todo.id, "score": 0.0, "max_score": _points(todo.auto),
+                          "status": "failed", "output": "Not graded: see the message at the top.",
+                          "output_format": "md", "visibility": "after_published", "tags": ["points"]})
+            continue
+        visible_pass = all(check["passed"] or check["failed_on"] == "hidden" for check in entry["checks"])
+        tests.append({"name": f"{name}: visible inputs", "number": f"{todo.id}.0", "score": 0.0, "max_score": 0.0,
+                      "status": "passed" if visible_pass and entry["checks"] else "failed",
+                      "output": todo_markdown(entry, visible_only=True), "output_format": "md",
+                      "visibility": "visible", "tags": ["visible inputs"]})
+        earned = _points(entry["auto_earned"])
+        tests.append({"name": name, "number": f"{todo.id}.1", "score": earned, "max_score": _points(todo.auto),
+                      "status": "passed" if earned >= todo.auto else "failed",
+                      "output": todo_markdown(entry), "output_format": "md",
+                      "visibility": "after_published", "tags": ["points", "hidden inputs"]})
+    return tests
+
+
+def results_json(result, status, notes=(), seconds=0.0):
+    """Gradescope's results.json (a dict) for one submission: ``result`` is the grader's dict, or
+    None when the submission could not be graded (``status`` says why)."""
+    manual = sum(todo.manual for todo in TODOS)
+    lines = [f"Status: **{md_escape(status)}**", ""]
+    if result is None:
+        lines += ["Your submission was not graded, so it earns 0 automatic points. Fix it and submit again.", "",
+                  UNGRADED_HELP]
+    else:
+        lines += ["Each TODO's code is checked with the reference solution for every other TODO, so a mistake costs "
+                  "points only where it was made. Below, for each TODO, what your code gives on the inputs you can "
+                  "see; the points, which also depend on inputs you cannot see, are shown when the grades are "
+                  f"published. {manual:g} more points are graded by hand."]
+        lines += [f"- note: {md_escape(note)}" for note in list(notes) + result["notes"]]
+    data = {
+        "score": _points(result["total"]["auto_earned"]) if result else 0.0,
+        "execution_time": round(seconds, 1),
+        "output": "\n".join(lines).rstrip() + "\n",
+        "output_format": "md",
+        "stdout_visibility": "hidden",
+        "tests": _tests(result),
+        "extra_data": {"status": status, "isolated": bool(result and result["isolated"]),
+                       "isolation": result["isolation"] if result else ""},
+    }
+    return data
+
+
+def _scrub(source):
+    """Delete the bundle's reference and hidden checks from disk (a fresh container per submission)."""
+    if not (source / BUNDLE_MARKER).is_file():
+        return False
+    for name in SCRUBBED:
+        target = source / name
+        if target.is_dir() and not target.is_symlink():
+            blocks.remove_tree(target)
+    return True
+
+
+def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdout):
+    """Grade ``ROOT/submission`` against ``ROOT/source``; write and return the results dict."""
+    started = time.monotonic()
+    paths = autograder_paths(root)
+    time_limit = float(time_limit or os.environ.get("AUTOGRADER_TIME_LIMIT") or DEFAULT_TIME_LIMIT)
+    grader = Grader(paths["source"], python=python, isolation=isolation, time_limit=time_limit,
+                    jobs=os.cpu_count() or 1)
+    kit_names = kit_file_names(grader.layout)
+    scrubbed = _scrub(paths["source"])
+    out.write(f"sandbox: {grader.sandbox.how if grader.sandbox.isolated else 'NOT ISOLATED: ' + grader.sandbox.how}\n"
+              f"grader: {Path(__file__).resolve().parent}; reference: {paths['source']} (hwlib and hidden checks "
+              f"{'deleted from disk once loaded' if scrubbed else 'left on disk'})\n")
+    try:
+        with open_submission(paths["submission"], kit_names) as opened:
+            result = grader.grade(opened.kit)
+            result["submission"], result["reference"] = "your submission", "the reference solution"
+            status, notes = status_of(result), opened.notes
+    except Unusable as unusable:
+        result, status, notes = None, unusable.text, []
+    data = results_json(result, status, notes, time.monotonic() - started)
+    target = paths["results"]
+    target.parent.mkdir(parents=True, exist_ok=True)
+    temporary = target.with_name(target.name + ".part")
+    temporary.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
+    os.replace(temporary, target)
+    out.write(f"status: {status}; score {data['score']:g}\n")
+    if result is not None:
+        out.write(render(result))
+    out.flush()
+    return data
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.gradescope",
+                                     description="Gradescope's run_autograder: grade ROOT/submission, write "
+                                                 "ROOT/results/results.json.")
+    parser.add_argument("--root", help="the autograder folder (default: $AUTOGRADER_ROOT, else /autograder)")
+    parser.add_argument("--time-limit", type=float, metavar="SECONDS",
+                        help=f"per TODO's run (default: $AUTOGRADER_TIME_LIMIT, else {DEFAULT_TIME_LIMIT:g})")
+    args = parser.parse_args(argv)
+    try:
+        run(args.root, args.time_limit)
+    except GradingError as error:
+        print(f"error: the autograder cannot grade: {error}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,485 @@
+"""Grading a class: a generated folder of 30 submissions (correct ones, each wrong solution, each
+cheat, an empty one, a zip with ../ paths, a zip with a 200 MB file, a damaged zip, one that never
+ends) graded in one run on 2 jobs; every gradebook cell is the expected one; a rerun writes the
+same bytes and grades nothing; a killed run resumes; and the reader refuses what it must.
+
+One ``Grader`` serves the module (as it serves a class): the reference's answers are computed once.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, TODOS, Grader, blocks, checks, classroom, write_answer_key
+from hwtools.grade.grader import read_answer_key
+
+KIT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(KIT / "tests"))
+import test_grading as proof  # noqa: E402 - the grader's proof builds the wrong solutions and cheats
+
+TIME_LIMIT = 15.0  # per TODO's run; the endless loop costs it once
+JOBS = 2
+HUGE = 200_000_000  # the 200 MB file: zeros, compressed to almost nothing, never written out
+AUTO_TODOS = [todo.id for todo in TODOS if todo.auto]
+# What each wrong solution keeps of its own TODO's points (every other TODO keeps all of its own).
+WRONG_KEPT = {"forward_difference": 0, "labels_not_one_vs_rest": 0, "learning_rate_too_large": 0,
+              "logreg_gradient_descent": 0, "logreg_mean_gradient": 0, "one_vs_rest_inverted_labels": 0,
+              "policy_gradient_descent": 2, "policy_mirror_image": 0, "predict_prob_without_bias": 1,
+              "sigmoid_wrong_sign": 0, "single_rollout": 1}
+
+pytestmark = pytest.mark.timeout(900)
+
+
+@pytest.fixture(scope="module")
+def grader():
+    return Grader(KIT, time_limit=TIME_LIMIT, jobs=1)
+
+
+@pytest.fixture(scope="module")
+def layout():
+    return blocks.load_layout(KIT)
+
+
+@pytest.fixture(scope="module")
+def answer_key(grader, tmp_path_factory):
+    path = tmp_path_factory.mktemp("key") / "answer_key.json"
+    write_answer_key(KIT, path, python=grader.sandbox.python)
+    return read_answer_key(path)
+
+
+def zip_folder(folder, archive_path, prefix=""):
+    """Zip every file under ``folder`` with paths starting ``prefix``."""
+    with zipfile.ZipFile(archive_path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        for path in sorted(Path(folder).rglob("*")):
+            if path.is_file():
+                archive.write(path, prefix + path.relative_to(folder).as_posix())
+    return archive_path
+
+
+def write_huge_zip(path, inner="hwlib/finite_diff.py"):
+    """A zip whose ``inner`` file holds HUGE zero bytes, deflated to a few hundred kB."""
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        info = zipfile.ZipInfo(inner)
+        info.compress_type = zipfile.ZIP_DEFLATED
+        with archive.open(info, "w", force_zip64=True) as stream:
+            chunk = bytes(1_000_000)
+            for _ in range(HUGE // len(chunk)):
+                stream.write(chunk)
+    return path
+
+
+def full():
+    return {todo: TODO_BY_ID[todo].auto for todo in AUTO_TODOS}
+
+
+def zero():
+    return {todo: 0.0 for todo in AUTO_TODOS}
+
+
+class Class:
+    """The generated class: folder, and per student the expected status and points."""
+
+    def __init__(self, folder):
+        self.folder = folder
+        self.expected = {}
+
+    def expect(self, student, status, points):
+        assert student not in self.expected
+        self.expected[student] = (status, points)
+
+
+def graded(grader, base="graded"):
+    """The status of a graded submission on this machine (the sandbox may be unavailable)."""
+    if grader.sandbox.isolated:
+        return base
+    return "not isolated" if base == "graded" else f"{base}; not isolated"
+
+
+@pytest.fixture(scope="module")
+def a_class(tmp_path_factory, grader, layout, answer_key):
+    from instructor.release import build_student_edition
+
+    folder = tmp_path_factory.mktemp("class") / "submissions"
+    folder.mkdir()
+    scratch = tmp_path_factory.mktemp("scratch")
+    made = Class(folder)
+
+    # Correct: a folder, and a zip of a whole student edition one folder down, with macOS leftovers.
+    blocks.write_submission(layout, folder / "correct-folder", others="reference")
+    made.expect("correct-folder", graded(grader), full())
+    edition = scratch / "edition"
+    build_student_edition(KIT, edition, keep=frozenset(TODO_BY_ID), answer_key=False)
+    zip_folder(edition, folder / "correct-zip.zip", prefix="correct-zip/")
+    with zipfile.ZipFile(folder / "correct-zip.zip", "a") as archive:
+        archive.writestr("__MACOSX/correct-zip/hwlib/._cartpole.py", b"\x00\x05\x16\x07 resource fork")
+    made.expect("correct-zip", graded(grader), full())
+
+    # Each wrong solution, zipped one folder down: its own TODO loses, every other keeps its points.
+    for path in sorted(proof.WRONG.glob("*.txt")):
+        todo, _, bodies = proof.parse_wrong_solution(path)
+        kit = blocks.write_submission(layout, scratch / "wrong" / path.stem / "hw1", {todo: bodies}, others="reference")
+        zip_folder(kit.parent, folder / f"wrong-{path.stem}.zip")
+        kept = WRONG_KEPT.get(path.stem)
+        if kept is None:  # a wrong solution added since: what grading it alone gives, which must lose points
+            kept = proof.points(grader.grade(kit))[todo]
+            assert kept < TODO_BY_ID[todo].auto, path.name
+        made.expect(f"wrong-{path.stem}", graded(grader), full() | {todo: kept})
+
+    # Each cheat, as a folder (one of them holds a link).
+    for path in proof.CHEAT_FILES:
+        cheat = proof.parse_cheat(path)
+        student = f"cheat-{path.stem}"
+        proof.build_cheat(layout, cheat, folder / student, answer_key)
+        if cheat["links"]:
+            made.expect(student, f"rejected: {cheat['links'][0]} is a link; only plain files are read", zero())
+            continue
+        if cheat["others"] == "reference":
+            (own,) = cheat["bodies"]
+            points = full() | {own: cheat["points"] - (AUTO_POINTS - TODO_BY_ID[own].auto)}
+        else:
+            assert cheat["points"] == 0
+            points = zero()
+        timed_out = "time limit" in cheat["expect"]
+        made.expect(student, graded(grader, f"timed out: {', '.join(cheat['bodies'])}" if timed_out else "graded"),
+                    points)
+
+    # Nothing to grade, or nothing that may be read.
+    (folder / "empty").mkdir()
+    made.expect("empty", "empty", zero())
+    with zipfile.ZipFile(folder / "traversal.zip", "w") as archive:
+        archive.writestr("hw1/hwlib/finite_diff.py", (KIT / "hwlib" / "finite_diff.py").read_text())
+        archive.writestr("hw1/../../escaped.py", "print('outside')\n")
+    made.expect("traversal", "rejected: a path that leaves the submission in the zip: 'hw1/../../escaped.py'", zero())
+    write_huge_zip(folder / "huge.zip")
+    made.expect("huge", f"rejected: hwlib/finite_diff.py: 200 MB, more than the {classroom._size(blocks.MAX_FILE_BYTES)}"
+                        " read per file", zero())
+    (folder / "damaged.zip").write_bytes(b"PK\x03\x04" + bytes(100))
+    made.expect("damaged", "unreadable: not a zip file (no end-of-archive record)", zero())
+    return made
+
+
+def read_gradebook(path):
+    with open(path, newline="", encoding="utf-8") as handle:
+        rows = list(csv.reader(handle))
+    return rows[0], {row[0]: dict(zip(rows[0], row)) for row in rows[1:]}, [row[0] for row in rows[1:]]
+
+
+def auto_column(todo):
+    info = TODO_BY_ID[todo]
+    return f"{info.id} {info.title} (/{info.auto:g})"
+
+
+@pytest.fixture(scope="module")
+def first_run(a_class, grader, tmp_path_factory):
+    out = tmp_path_factory.mktemp("out")
+    progress = io.StringIO()
+    started = time.monotonic()
+    report = classroom.grade_class(a_class.folder, out / "grades.csv", out / "feedback", grader=grader, jobs=JOBS,
+                                   progress=progress)
+    return report, out, progress.getvalue(), time.monotonic() - started
+
+
+def test_the_class_has_thirty_submissions_of_every_kind(a_class):
+    assert len(a_class.expected) >= 30
+    assert {"empty", "traversal", "huge", "damaged", "cheat-endless_loop"} <= set(a_class.expected)
+    assert sum(path.suffix == ".zip" for path in a_class.folder.iterdir()) >= 14
+    assert os.path.getsize(a_class.folder / "huge.zip") < 2_000_000
+
+
+def test_every_gradebook_cell_is_the_expected_one(a_class, first_run):
+    report, out, _, _ = first_run
+    header, rows, order = read_gradebook(out / "grades.csv")
+    assert header == classroom.gradebook_header()
+    assert header[:2] == ["student", "status"] and header[-1] == "notes"
+    assert [auto_column(todo) for todo in AUTO_TODOS] == header[2:2 + len(AUTO_TODOS)]
+    assert header[2 + len(AUTO_TODOS)] == f"auto total (/{AUTO_POINTS:g})" == "auto total (/39)"
+    manual = [column for column in header if " by hand: " in column]
+    assert manual == [f"{todo.id} by hand: {todo.manual_what if todo.auto else todo.title} (/{todo.manual:g})"
+                      for todo in TODOS if todo.manual]
+    assert "1.1.2 by hand: hand-tuning the policy (/2)" in manual and "2.1.1 by hand: " in manual[-2]
+    assert order == sorted(a_class.expected), "one row per student, sorted by id"
+    for student, (status, points) in a_class.expected.items():
+        row = rows[student]
+        assert row["status"] == status, (student, row)
+        for todo in AUTO_TODOS:
+            assert float(row[auto_column(todo)]) == points[todo], (student, todo, row)
+        assert float(row["auto total (/39)"]) == pytest.approx(sum(points.values())), student
+        assert all(row[column] == "" for column in manual), "manual points are left for the TA"
+    assert rows["cheat-endless_loop"]["notes"] == "2.2.1 time limit"
+    assert report.graded_now + report.reused + report.not_graded == len(a_class.expected)
+    assert report.not_graded == 5 and not report.errors  # link, empty, traversal, huge, damaged
+
+
+def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class, first_run, grader):
+    _, out, _, _ = first_run
+    feedback = {path.stem: path.read_text(encoding="utf-8") for path in (out / "feedback").glob("*.md")}
+    assert set(feedback) == set(a_class.expected)
+    wrong = feedback["wrong-forward_difference"]
+    assert "Automatic points: **29 of 39**" in wrong and "## 1.2.1 central finite differences" in wrong
+    assert "First failing check:" in wrong and "expected:" in wrong and "actual:" in wrong
+    assert "rejected: a path that leaves the submission" in feedback["traversal"]
+    assert "Nothing of this submission was run" in feedback["huge"]
+    assert "on a hidden input (hidden inputs are not shown" in feedback["cheat-hardcoded_visible"]
+    hidden_inputs = [checks.show(value) for todo in checks.GRADED_TODOS for _, _, args in grader.cases[todo].hidden
+                     for value in args.values() if isinstance(value, np.ndarray) and np.unique(value).size >= 3]
+    assert hidden_inputs
+    for student, text in feedback.items():
+        for shown in hidden_inputs:
+            assert shown not in text, (student, shown)
+        for line in grader._secret_lines:
+            assert line not in text, student
+        assert str(a_class.folder) not in text and "hwclass-" not in text, "no path of the grading machine"
+
+
+def test_progress_counts_done_of_total_with_the_time_left(a_class, first_run):
+    _, _, progress, _ = first_run
+    lines = progress.splitlines()
+    total = len(a_class.expected)
+    assert lines[0].startswith(f"grading {total} submission(s)")
+    counted = [line for line in lines if re.match(rf"\[\d+/{total}\] \d+:\d\d elapsed, ", line)]
+    assert len(counted) == total  # not a terminal: one line per submission
+    assert "left" in counted[total // 2] and counted[-1].split("]")[0] == f"[{total}/{total}"
+
+
+def test_a_rerun_writes_the_same_bytes_and_grades_nothing(a_class, first_run, grader):
+    report, out, _, _ = first_run
+    before = {path.name: path.read_bytes() for path in (out / "feedback").iterdir()}
+    gradebook = (out / "grades.csv").read_bytes()
+    calls = []
+    grader.grade = lambda *args, **kwargs: calls.append(args) or Grader.grade(grader, *args, **kwargs)
+    try:
+        again = classroom.grade_class(a_class.folder, out / "grades.csv", out / "feedback", grader=grader, jobs=JOBS)
+    finally:
+        del grader.grade
+    assert calls == [] and again.graded_now == 0
+    assert again.reused == report.graded_now + report.reused
+    assert (out / "grades.csv").read_bytes() == gradebook
+    assert {path.name: path.read_bytes() for path in (out / "feedback").iterdir()} == before
+    assert not re.search(rb"\d{4}-\d\d-\d\d|\d\d:\d\d:\d\d", gradebook), "no time stamps in the gradebook"
+
+
+def test_a_changed_submission_is_graded_again_and_only_it(a_class, first_run, grader, tmp_path):
+    _, out, _, _ = first_run
+    copy = tmp_path / "submissions"
+    shutil.copytree(a_class.folder, copy, symlinks=True)
+    state = classroom.state_folder(out / "grades.csv")
+    shutil.copytree(state, classroom.state_folder(tmp_path / "grades.csv"))
+    target = copy / "correct-folder" / "hwlib" / "logreg.py"
+    target.write_text(target.read_text().replace("### END TODO 2.2.1", "# changed after the deadline\n"
+                                                 "    ### END TODO 2.2.1", 1))
+    report = classroom.grade_class(copy, tmp_path / "grades.csv", tmp_path / "feedback", grader=grader, jobs=JOBS)
+    assert report.graded_now == 1
+    changed = next(result for result in report.students if result.student == "correct-folder")
+    assert not changed.reused and changed.auto_total == AUTO_POINTS
+
+
+def test_a_killed_run_resumes_without_grading_again_what_was_saved(a_class, first_run, grader, tmp_path):
+    _, out, _, _ = first_run
+    subset = tmp_path / "submissions"
+    subset.mkdir()
+    students = ["correct-folder", "wrong-forward_difference", "wrong-single_rollout", "wrong-sigmoid_wrong_sign",
+                "wrong-policy_mirror_image", "wrong-predict_prob_without_bias", "empty"]
+    for student in students:
+        source = a_class.folder / student
+        if source.is_dir():
+            shutil.copytree(source, subset / student)
+        else:
+            shutil.copy(a_class.folder / f"{student}.zip", subset)
+    gradebook, feedback = tmp_path / "grades.csv", tmp_path / "feedback"
+    state = classroom.state_folder(gradebook)
+    command = [sys.executable, "-m", "hwtools.grade", str(subset), "--gradebook", str(gradebook), "--feedback",
+               str(feedback), "--jobs", "1", "--time-limit", f"{TIME_LIMIT:g}"]
+    process = subprocess.Popen(command, cwd=KIT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.monotonic() + 300
+    while not (state.is_dir() and any(state.glob("*.json"))) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    os.killpg(process.pid, signal.SIGKILL)
+    process.communicate()
+    saved = sorted(path.stem for path in state.glob("*.json"))
+    assert 1 <= len(saved) < 6, saved  # killed after the first results were saved, before the end
+    assert not gradebook.exists()
+    for path in state.glob("*.json"):
+        json.loads(path.read_text())  # written whole or not at all
+
+    report = classroom.grade_class(subset, gradebook, feedback, grader=grader, jobs=JOBS)
+    assert report.reused == len(saved) and report.graded_now == 6 - len(saved)
+    _, rows, _ = read_gradebook(gradebook)
+    _, everyone, _ = read_gradebook(out / "grades.csv")
+    assert rows == {student: everyone[student] for student in students}
+
+
+# --------------------------------------------------------------------------------------------
+# Reading a submission without trusting it (no grading: fast)
+# --------------------------------------------------------------------------------------------
+
+
+def read(path, layout):
+    try:
+        with classroom.open_submission(path, classroom.kit_file_names(layout)) as opened:
+            files = sorted(p.relative_to(opened.kit).as_posix() for p in opened.kit.rglob("*") if p.is_file())
+            return "ok", files, opened.digest, opened.notes
+    except classroom.Unusable as unusable:
+        return unusable.text, [], None, []
+
+
+@pytest.fixture(scope="module")
+def a_kit(layout, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("kit") / "kit"
+    blocks.write_submission(layout, folder, others="reference")
+    shutil.copytree(KIT / "notebooks", folder / "notebooks")
+    return folder
+
+
+def test_the_kit_is_found_at_the_top_or_up_to_two_folders_down(a_kit, layout, tmp_path):
+    status, files, digest, _ = read(a_kit, layout)
+    assert status == "ok" and "hwlib/finite_diff.py" in files and any(f.startswith("notebooks/") for f in files)
+    assert all(f.startswith("hwlib/") and f.endswith(".py") or f.endswith(".ipynb") for f in files)
+    for prefix in ("", "alice/", "alice/hw1/"):
+        archive = zip_folder(a_kit, tmp_path / f"depth{prefix.count('/')}.zip", prefix=prefix)
+        assert read(archive, layout)[2] == digest, prefix  # the same files, the same digest: no regrading
+    too_deep = zip_folder(a_kit, tmp_path / "deep.zip", prefix="a/b/c/")
+    assert read(too_deep, layout)[0].startswith("unreadable: no hwlib/ folder")
+    (tmp_path / "holder").mkdir()
+    shutil.copy(tmp_path / "depth1.zip", tmp_path / "holder" / "upload.zip")  # a folder whose content is one zip
+    status, _, nested_digest, notes = read(tmp_path / "holder", layout)
+    assert status == "ok" and nested_digest == digest and notes == ["read from upload.zip"]
+
+
+def test_two_kits_in_one_submission_are_not_guessed_between(a_kit, layout, tmp_path):
+    shutil.copytree(a_kit / "hwlib", tmp_path / "sub" / "one" / "hwlib")
+    shutil.copytree(a_kit / "hwlib", tmp_path / "sub" / "two" / "hwlib")
+    assert read(tmp_path / "sub", layout)[0] == "unreadable: more than one copy of the kit (one/, two/); send one"
+
+
+def test_bare_library_files_are_read_as_hwlib(a_kit, layout, tmp_path):
+    flat = tmp_path / "flat"
+    flat.mkdir()
+    for name in classroom.kit_file_names(layout):
+        shutil.copy(a_kit / "hwlib" / name, flat / name)
+    status, files, _, notes = read(flat, layout)
+    assert status == "ok" and files == sorted(f"hwlib/{name}" for name in classroom.kit_file_names(layout))
+    assert "read as hwlib/" in notes[0]
+
+
+def test_junk_and_virtual_environments_are_ignored_links_in_the_kit_are_refused(a_kit, layout, tmp_path):
+    folder = tmp_path / "alice"
+    shutil.copytree(a_kit, folder)
+    (folder / ".venv" / "bin").mkdir(parents=True)
+    (folder / ".venv" / "bin" / "python").symlink_to("/usr/bin/python3")
+    (folder / "__MACOSX").mkdir()
+    (folder / "__MACOSX" / "._hwlib").write_bytes(b"\0")
+    assert read(folder, layout)[0] == "ok"
+    (folder / "hwlib" / "extra.py").symlink_to("/etc/passwd")
+    assert read(folder, layout)[0] == "rejected: hwlib/extra.py is a link; only plain files are read"
+    (folder / "hwlib" / "extra.py").unlink()
+    link = tmp_path / "link-to-alice"
+    link.symlink_to(folder)
+    assert read(link, layout)[0] == "rejected: the submission is a link; only plain folders and files are read"
+
+
+@pytest.mark.parametrize("name, why", [
+    ("/etc/cron.d/evil", "a path that leaves the submission in the zip: '/etc/cron.d/evil'"),
+    ("hw1/../../evil.py", "a path that leaves the submission in the zip: 'hw1/../../evil.py'"),
+    ("hw1\\..\\..\\evil.py", "a path that leaves the submission in the zip: 'hw1\\\\..\\\\..\\\\evil.py'"),
+    ("C:/Windows/evil.py", "a path that leaves the submission in the zip: 'C:/Windows/evil.py'"),
+])
+def test_zip_paths_that_leave_the_submission_reject_it(a_kit, layout, tmp_path, name, why):
+    archive = zip_folder(a_kit, tmp_path / "s.zip")
+    with zipfile.ZipFile(archive, "a") as handle:
+        handle.writestr(name, "x")
+    assert read(archive, layout)[0] == f"rejected: {why}"
+
+
+def test_a_link_in_a_zip_is_refused(a_kit, layout, tmp_path):
+    archive = zip_folder(a_kit, tmp_path / "s.zip")
+    with zipfile.ZipFile(archive, "a") as handle:
+        info = zipfile.ZipInfo("hwlib/secret.py")
+        info.create_system = 3
+        info.external_attr = 0o120777 << 16
+        handle.writestr(info, "/work/main/hwlib/finite_diff.py")
+    assert read(archive, layout)[0] == "rejected: hwlib/secret.py is a link; only plain files are read"
+
+
+def test_a_huge_file_is_refused_by_its_declared_size_before_any_byte_is_extracted(layout, tmp_path, monkeypatch):
+    archive = write_huge_zip(tmp_path / "huge.zip", inner="hw1/notebooks/p1.ipynb")
+    with zipfile.ZipFile(archive, "a") as handle:  # a kit beside it, so that the notebook is one of its files
+        handle.writestr("hw1/hwlib/finite_diff.py", "x = 1\n")
+    opened = []
+    monkeypatch.setattr(zipfile.ZipFile, "open", lambda *args, **kwargs: opened.append(args) or 1 / 0)
+    assert read(archive, layout)[0] == "rejected: hw1/notebooks/p1.ipynb: 200 MB, more than the 20 MB read per file"
+    assert opened == []
+
+
+def test_a_file_with_more_bytes_than_declared_is_refused(a_kit, layout, tmp_path):
+    archive = tmp_path / "lying.zip"
+    body = b"# " + b"x" * 5000 + b"\n"
+    with zipfile.ZipFile(archive, "w", compression=zipfile.ZIP_STORED) as handle:
+        handle.writestr("hwlib/finite_diff.py", body)
+    data = bytearray(archive.read_bytes())
+    for signature, offset in ((b"PK\x03\x04", 22), (b"PK\x01\x02", 24)):  # the uncompressed size, in both headers
+        start = data.find(signature)
+        data[start + offset:start + offset + 4] = (100).to_bytes(4, "little")
+    archive.write_bytes(bytes(data))
+    status = read(archive, layout)[0]
+    assert status.startswith(("rejected: hwlib/finite_diff.py: more bytes than", "unreadable: a damaged")), status
+
+
+def test_too_many_entries_too_many_bytes_empty_and_damaged(a_kit, layout, tmp_path, monkeypatch):
+    archive = zip_folder(a_kit, tmp_path / "s.zip")
+    monkeypatch.setattr(classroom, "MAX_ENTRIES", 5)
+    assert read(archive, layout)[0].startswith("rejected: a zip of ")
+    monkeypatch.undo()
+    monkeypatch.setattr(classroom, "MAX_SUBMISSION_BYTES", 100_000)
+    assert read(archive, layout)[0].startswith("rejected: ") and "read per submission" in read(archive, layout)[0]
+    monkeypatch.undo()
+    with zipfile.ZipFile(tmp_path / "empty.zip", "w"):
+        pass
+    (tmp_path / "zero.zip").write_bytes(b"")
+    (tmp_path / "nothing").mkdir()
+    for empty in ("empty.zip", "zero.zip", "nothing"):
+        assert read(tmp_path / empty, layout)[0] == "empty", empty
+    (tmp_path / "notes.txt").write_text("hello")
+    assert read(tmp_path / "notes.txt", layout)[0] == "unreadable: not a folder or a .zip file"
+    broken = bytearray(archive.read_bytes())
+    start = broken.find(b"PK\x03\x04", 10)
+    broken[start + 40:start + 200] = bytes(160)  # damage compressed data
+    (tmp_path / "broken.zip").write_bytes(bytes(broken))
+    assert read(tmp_path / "broken.zip", layout)[0].startswith(("unreadable: a damaged", "rejected: "))
+
+
+def test_duplicate_ids_and_formula_like_names(layout, grader, tmp_path):
+    folder = tmp_path / "submissions"
+    blocks.write_submission(layout, folder / "dup", others="stub")
+    zip_folder(folder / "dup", folder / "dup.zip")
+    (folder / "=HYPERLINK(1)").mkdir()
+    (folder / ".DS_Store").write_bytes(b"\0")
+    report = classroom.grade_class(folder, tmp_path / "grades.csv", tmp_path / "feedback", grader=grader, jobs=1)
+    header, rows, order = read_gradebook(tmp_path / "grades.csv")
+    assert order == ["'=HYPERLINK(1)", "dup"]
+    assert rows["dup"]["status"] == "rejected: more than one submission under this id (dup, dup.zip)"
+    assert rows["'=HYPERLINK(1)"]["status"] == "empty"
+    assert report.graded_now == 0
+
+
+def test_command_line_needs_a_gradebook_for_a_folder_of_submissions(tmp_path):
+    (tmp_path / "alice").mkdir()
+    result = subprocess.run([sys.executable, "-m", "hwtools.grade", str(tmp_path)], cwd=KIT, capture_output=True,
+                            text=True, timeout=120)
+    assert result.returncode == 2 and "--gradebook" in result.stderr and "folder of submissions" in result.stderr
+    result = subprocess.run([sys.executable, "-m", "hwtools.grade", str(KIT), "--gradebook", str(tmp_path / "g.csv")],
+                            cwd=KIT, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2 and "is a kit" in result.stderr

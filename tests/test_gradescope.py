@@ -1,0 +1,249 @@
+"""The Gradescope bundle, proved without Gradescope: ``python -m instructor.release gradescope OUT.zip``
+is unpacked into a temporary folder laid out as ``/autograder`` (a fresh one per submission, as
+Gradescope gives a fresh container), ``run_autograder`` runs with this venv's Python (setup.sh is
+not run), and each ``results.json`` is checked against a schema written from
+``../shared/grading/gradescope-autograder.md`` and against the expected scores.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import jsonschema
+import pytest
+
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, TODOS, blocks, write_answer_key
+from hwtools.grade.grader import read_answer_key
+from hwtools.grade.gradescope import BUNDLE_MARKER
+
+KIT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(KIT / "tests"))
+import test_grading as proof  # noqa: E402 - the grader's proof builds the wrong solutions and cheats
+
+TIME_LIMIT = 20
+pytestmark = pytest.mark.timeout(900)
+
+VISIBILITY = ["hidden", "after_due_date", "after_published", "visible"]
+OUTPUT_FORMATS = ["text", "html", "simple_format", "md", "ansi"]
+# Gradescope's results.json, as the summary in ../shared/grading/gradescope-autograder.md gives it.
+RESULTS_SCHEMA = {
+    "$schema": "http://json-schema.org/draft-07/schema#",
+    "type": "object",
+    "anyOf": [{"required": ["score"]}, {"required": ["tests"]}],
+    "additionalProperties": False,
+    "properties": {
+        "score": {"type": "number"},
+        "execution_time": {"type": "number", "minimum": 0},
+        "output": {"type": "string"},
+        "output_format": {"enum": OUTPUT_FORMATS},
+        "visibility": {"enum": VISIBILITY},
+        "stdout_visibility": {"enum": ["hidden", "visible"]},
+        "extra_data": {},
+        "tests": {
+            "type": "array",
+            "items": {
+                "type": "object",
+                "additionalProperties": False,
+                "required": ["name", "score", "max_score"],
+                "properties": {
+                    "name": {"type": "string", "minLength": 1},
+                    "number": {"type": "string"},
+                    "score": {"type": "number", "minimum": 0},
+                    "max_score": {"type": "number", "minimum": 0},
+                    "status": {"enum": ["passed", "failed"]},
+                    "output": {"type": "string"},
+                    "output_format": {"enum": OUTPUT_FORMATS},
+                    "tags": {"type": "array", "items": {"type": "string"}},
+                    "visibility": {"enum": VISIBILITY},
+                },
+            },
+        },
+        "leaderboard": {
+            "type": "array",
+            "items": {"type": "object", "required": ["name", "value"],
+                      "properties": {"name": {"type": "string"}, "value": {}, "order": {"enum": ["asc", "desc"]}}},
+        },
+    },
+}
+
+
+def check_results(data):
+    """The schema, and what JSON Schema cannot say: each score within [0, max_score], the total the
+    sum of the tests, a test whose points depend on hidden inputs never visible before publishing."""
+    jsonschema.validate(data, RESULTS_SCHEMA)
+    for test in data["tests"]:
+        assert 0 <= test["score"] <= test["max_score"], test["name"]
+        if test["max_score"] > 0 or "hidden inputs" in test.get("tags", []):
+            assert test.get("visibility", data.get("visibility", "visible")) not in ("visible", "after_due_date"), test
+    assert data["score"] == pytest.approx(sum(test["score"] for test in data["tests"]))
+    assert sum(test["max_score"] for test in data["tests"]) == AUTO_POINTS
+    assert data["stdout_visibility"] == "hidden"
+
+
+@pytest.fixture(scope="module")
+def bundle(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bundle") / "autograder.zip"
+    result = subprocess.run([sys.executable, "-m", "instructor.release", "gradescope", str(out)], cwd=KIT,
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def layout():
+    return blocks.load_layout(KIT)
+
+
+def autograde(bundle, tmp_path, make_submission):
+    """Lay out ``tmp_path`` as /autograder (the bundle in source/, run_autograder beside it), put a
+    submission in submission/, run run_autograder; (results.json, stdout)."""
+    root = tmp_path / "autograder"
+    (root / "source").mkdir(parents=True)
+    (root / "results").mkdir()
+    with zipfile.ZipFile(bundle) as archive:
+        archive.extractall(root / "source")
+        for info in archive.infolist():  # zipfile keeps no permission bits: put them back as Gradescope does
+            os.chmod(root / "source" / info.filename, (info.external_attr >> 16) & 0o777)
+    shutil.copy(root / "source" / "run_autograder", root / "run_autograder")
+    (root / "submission").mkdir()
+    make_submission(root / "submission")
+    env = os.environ | {"AUTOGRADER_ROOT": str(root), "AUTOGRADER_PYTHON": sys.executable,
+                        "AUTOGRADER_TIME_LIMIT": str(TIME_LIMIT)}
+    result = subprocess.run([str(root / "run_autograder")], cwd=root, env=env, capture_output=True, text=True,
+                            timeout=600)
+    assert result.returncode == 0, result.stderr + result.stdout
+    data = json.loads((root / "results" / "results.json").read_text())
+    check_results(data)
+    # graded by the bundle's own grader, and the reference deleted from disk once loaded
+    assert f"grader: {(root / 'source' / 'hwtools' / 'grade').resolve()}" in result.stdout
+    assert not (root / "source" / "hwlib").exists() and not (root / "source" / "instructor").exists()
+    return data, result.stdout
+
+
+def by_name(data):
+    return {test["name"]: test for test in data["tests"]}
+
+
+def points_tests(data):
+    return {test["number"][:-2]: test for test in data["tests"] if test["visibility"] == "after_published"}
+
+
+def visible_tests(data):
+    return {test["number"][:-2]: test for test in data["tests"] if test["visibility"] == "visible"}
+
+
+def test_the_bundle_holds_what_gradescope_runs_and_nothing_a_grader_does_not_need(bundle, tmp_path):
+    with zipfile.ZipFile(bundle) as archive:
+        infos = {info.filename: info for info in archive.infolist()}
+        requirements = archive.read("requirements.txt").decode()
+        setup = archive.read("setup.sh").decode()
+    names = set(infos)
+    assert {"setup.sh", "run_autograder", "requirements.txt", BUNDLE_MARKER, "instructor/hidden_checks/__init__.py",
+            "hwlib/finite_diff.py", "hwtools/grade/gradescope.py"} <= names
+    for name in ("setup.sh", "run_autograder"):
+        assert (infos[name].external_attr >> 16) & 0o111, f"{name} is not executable"
+    assert not [name for name in names if name.startswith(("notebooks/", "tests/", "benchmarks/", "data/"))
+                or name.endswith(".ipynb") or name in ("instructor/release.py", "README.md")
+                or "wrong_solutions" in name or "__pycache__" in name]
+    assert "BEGIN SOLUTION 1.2.1" in zipfile.ZipFile(bundle).read("hwlib/finite_diff.py").decode()  # the reference
+    assert re.search(r"^numpy[<>=]", requirements, re.M) and re.search(r"^gymnasium[<>=]", requirements, re.M)
+    assert "python3-venv" in setup and "bubblewrap" in setup and "requirements.txt" in setup
+    again = tmp_path / "again.zip"
+    subprocess.run([sys.executable, "-m", "instructor.release", "gradescope", str(again)], cwd=KIT, check=True,
+                   capture_output=True, timeout=300)
+    assert again.read_bytes() == bundle.read_bytes(), "two builds are byte-identical"
+    refused = subprocess.run([sys.executable, "-m", "instructor.release", "gradescope", str(again)], cwd=KIT,
+                             capture_output=True, text=True, timeout=300)
+    assert refused.returncode == 1 and "--force" in refused.stderr
+
+
+def test_the_bundled_requirements_cover_what_the_graded_code_imports():
+    """hwlib, as the worker imports it, needs only numpy, gymnasium and what they depend on."""
+    code = "import json, sys; before = set(sys.modules); import hwlib; print(json.dumps(sorted(set(sys.modules) - before)))"
+    modules = json.loads(subprocess.run([sys.executable, "-c", code], cwd=KIT, capture_output=True, text=True,
+                                        check=True, timeout=120).stdout)
+    distributions = importlib.metadata.packages_distributions()
+    used = {dist for name in modules if name.split(".")[0] not in sys.stdlib_module_names
+            for dist in distributions.get(name.split(".")[0], []) if name.split(".")[0] != "hwlib"}
+    from instructor.gradescope import GRADING_REQUIREMENTS
+
+    allowed, pending = set(), list(GRADING_REQUIREMENTS)
+    while pending:
+        name = pending.pop()
+        if name.lower() in allowed:
+            continue
+        allowed.add(name.lower())
+        for requirement in importlib.metadata.requires(name) or []:
+            if "extra ==" not in requirement:
+                pending.append(re.match(r"[A-Za-z0-9_.-]+", requirement)[0])
+    normal = {dist.lower().replace("_", "-") for dist in used}
+    assert normal <= {name.replace("_", "-") for name in allowed}, normal - allowed
+
+
+def test_a_correct_submission_earns_every_point(bundle, layout, tmp_path):
+    data, stdout = autograde(bundle, tmp_path, lambda folder: blocks.write_submission(layout, folder, others="reference"))
+    assert data["score"] == AUTO_POINTS == 39
+    assert all(test["status"] == "passed" for test in data["tests"])
+    assert data["extra_data"]["status"] in ("graded", "not isolated")
+    assert "Grading your submission" in stdout  # the full report, for the instructor's log
+
+
+def test_a_wrong_solution_loses_its_own_todo_and_is_told_what_to_fix(bundle, layout, tmp_path):
+    todo, _, bodies = proof.parse_wrong_solution(proof.WRONG / "forward_difference.txt")
+
+    def bare_files(folder):  # Gradescope's upload of single files: the library's files without hwlib/
+        blocks.write_submission(layout, folder / "kit", {todo: bodies}, others="reference")
+        for path in (folder / "kit" / "hwlib").glob("*.py"):
+            shutil.move(path, folder / path.name)
+        shutil.rmtree(folder / "kit")
+
+    data, _ = autograde(bundle, tmp_path, bare_files)
+    assert data["score"] == AUTO_POINTS - TODO_BY_ID[todo].auto == 29
+    points, visible = points_tests(data), visible_tests(data)
+    assert points[todo]["score"] == 0 and points[todo]["status"] == "failed"
+    assert all(test["score"] == test["max_score"] for other, test in points.items() if other != todo)
+    assert visible[todo]["status"] == "failed" and visible[todo]["max_score"] == 0
+    for word in ("First failing check", "input:", "expected:", "actual:"):
+        assert word in visible[todo]["output"]
+    assert "read as hwlib/" in data["output"]
+
+
+def test_a_cheat_earns_nothing_and_the_visible_feedback_says_nothing_of_hidden_inputs(bundle, layout, tmp_path,
+                                                                                     tmp_path_factory):
+    key_path = tmp_path_factory.mktemp("key") / "answer_key.json"
+    write_answer_key(KIT, key_path)
+    cheat = proof.parse_cheat(proof.CHEATS / "hardcoded_visible.txt")
+
+    def nested(folder):  # the kit one folder down, as a zip of the kit's folder unpacks
+        proof.build_cheat(layout, cheat, folder / "hw1", read_answer_key(key_path))
+
+    data, _ = autograde(bundle, tmp_path, nested)
+    assert data["score"] == 0
+    points, visible = points_tests(data), visible_tests(data)
+    for todo in cheat["hardcode"]:
+        # right on every visible input: the visible test passes and says nothing more;
+        # the points, decided by the hidden inputs too, wait for the grades to be published
+        assert visible[todo]["status"] == "passed", visible[todo]
+        assert "hidden" not in visible[todo]["output"]
+        assert points[todo]["score"] == 0 and "on a hidden input" in points[todo]["output"]
+        assert points[todo]["visibility"] == "after_published"
+
+
+def test_an_unreadable_submission_gets_zero_and_the_reason_at_once(bundle, tmp_path):
+    def traversal(folder):
+        with zipfile.ZipFile(folder / "upload.zip", "w") as archive:
+            archive.writestr("../../../autograder/results/results.json", "{}")
+            archive.writestr("hwlib/finite_diff.py", "x = 1\n")
+
+    data, _ = autograde(bundle, tmp_path, traversal)
+    assert data["score"] == 0 and data["extra_data"]["status"].startswith("rejected: a path that leaves")
+    assert "rejected: a path that leaves" in data["output"] and "submit again" in data["output"]
+    assert [test["number"] for test in data["tests"]] == [todo.id for todo in TODOS if todo.auto]
