@@ -247,3 +247,16 @@ def test_an_unreadable_submission_gets_zero_and_the_reason_at_once(bundle, tmp_p
     assert data["score"] == 0 and data["extra_data"]["status"].startswith("rejected: a path that leaves")
     assert "rejected: a path that leaves" in data["output"] and "submit again" in data["output"]
     assert [test["number"] for test in data["tests"]] == [todo.id for todo in TODOS if todo.auto]
+
+
+def test_students_read_their_status_without_the_sandbox_s_state():
+    from hwtools.grade.gradescope import results_json
+
+    result = {"notes": [], "total": {"auto_earned": 0.0}, "isolated": False, "isolation": "bwrap is missing",
+              "todos": []}
+    data = results_json(result, "timed out: 2.2.1; not isolated")
+    check_results(data)
+    assert "Status: **timed out: 2.2.1**" in data["output"] and "isolated" not in data["output"]
+    assert data["extra_data"] == {"status": "timed out: 2.2.1; not isolated", "isolated": False,
+                                  "isolation": "bwrap is missing"}
+    assert results_json(result, "not isolated")["output"].startswith("Status: **graded**")

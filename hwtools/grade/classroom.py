@@ -651,13 +651,16 @@ def todo_markdown(entry, visible_only=False):
     elif not entry["auto_possible"]:
         lines.append("Graded by hand" + ("; the check below is for the grader, it gives no points." if entry["checks"]
                                          else "."))
+    if lines and entry["checks"]:
+        lines.append("")
     for check in entry["checks"]:
         if visible_only:
             passed = check["passed"] or check["failed_on"] == "hidden"
             where = f"{check['visible_inputs']} visible input(s)"
             lines.append(f"- {'pass' if passed else '**FAIL**'}: {check['check']} ({where})")
             continue
-        inputs = f"{check['visible_inputs']} visible" + (f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else "")
+        inputs = f"{check['visible_inputs']} visible"
+        inputs += f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else ""
         where = f"; failed on a {check['failed_on']} input" if check["failed_on"] else ""
         lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}, {_points(check['points'])} pt: "
                      f"{check['check']} ({inputs} input(s){where})")
@@ -689,7 +692,9 @@ def todo_markdown(entry, visible_only=False):
 def summary_table(result):
     lines = ["| TODO | what | automatic | by hand | status |", "|---|---|---|---|---|"]
     for entry in result["todos"]:
-        auto = f"{_points(entry['auto_earned'])} / {_points(entry['auto_possible'])}" if entry["auto_possible"] else "–"
+        auto = "–"
+        if entry["auto_possible"]:
+            auto = f"{_points(entry['auto_earned'])} / {_points(entry['auto_possible'])}"
         manual = _points(entry["manual_possible"]) if entry["manual_possible"] else "–"
         lines.append(f"| {entry['id']} | {entry['title']} | {auto} | {manual} | {entry['status']} |")
     total = result["total"]
@@ -716,8 +721,6 @@ def feedback_markdown(student_result):
     total = result["total"]
     lines += ["", f"Automatic points: **{_points(total['auto_earned'])} of {_points(total['auto_possible'])}**; "
                   f"{_points(total['manual_possible'])} more points are graded by hand."]
-    if not result["isolated"]:
-        lines += ["", f"Note: the code ran without the sandbox ({md_escape(result['isolation'])})."]
     lines += ["", "Each TODO is checked with your code for that TODO and the reference solution for every other "
                   "one, so a mistake costs points only where it was made."]
     for note in student_result.notes + result["notes"]:
@@ -833,6 +836,14 @@ class ClassReport:
     errors: list = field(default_factory=list)
 
 
+def cpu_count():
+    """The CPUs this process may run on (a container's or a cpuset's share, where the system says)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
 def state_folder(gradebook):
     gradebook = Path(gradebook)
     return gradebook.parent / f".{gradebook.stem}-state"
@@ -852,7 +863,7 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     submissions, gradebook, feedback = Path(submissions), Path(gradebook), Path(feedback)
     if not submissions.is_dir():
         raise GradingError(f"{submissions}: not a folder of submissions")
-    jobs = int(jobs or os.cpu_count() or 1)
+    jobs = int(jobs or cpu_count())
     if jobs < 1:
         raise GradingError(f"jobs must be at least 1, got {jobs}")
     if grader is None:
