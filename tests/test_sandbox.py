@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import os
+import sys
 import textwrap
 import time
 from pathlib import Path
@@ -76,13 +77,18 @@ def test_no_network(isolated, tmp_path):
 def test_sees_only_its_kit_python_and_a_fresh_tmp(isolated, tmp_path):
     secret = tmp_path / "secret.txt"
     secret.write_text("the reference")
+    # The sandbox's /tmp is fresh: it holds its home and, where the kit or its Python lives under
+    # /tmp (a checkout there, as a CI clone may be), the folders that lead to them, nothing else.
+    expected_tmp = {"home"} | {Path(path).resolve().relative_to("/tmp").parts[0]
+                               for path in (KIT, sys.prefix, sys.base_prefix)
+                               if Path(path).resolve().is_relative_to("/tmp")}
     kit = make_kit(tmp_path, textwrap.dedent(f"""
         checks = [
             os.path.exists({str(KIT / "instructor")!r}),  # the instructor's kit
             os.path.exists({str(KIT / "hwlib")!r}),
             os.path.exists({str(secret)!r}),  # the grader's own temporary files
             os.path.exists("/kit/hwlib/logreg.py"),  # the kit under test
-            os.listdir("/tmp") != ["home"],  # a fresh /tmp
+            not set(os.listdir("/tmp")) <= set({sorted(expected_tmp)!r}),  # a fresh /tmp
             os.path.exists("/etc/passwd") or os.path.exists("/root/.ssh"),
         ]
         try:
