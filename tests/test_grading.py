@@ -9,11 +9,9 @@ grader has already run (the same TODO with the same code) is not run again.
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +19,7 @@ import pytest
 
 from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, write_answer_key
 from hwtools.grade.feedback import render
+from process_watch import live_processes
 
 KIT = Path(__file__).resolve().parents[1]
 CHEATS = KIT / "tests" / "cheats"
@@ -275,22 +274,8 @@ def test_there_are_at_least_ten_cheats():
 def worker_processes(settle=3.0):
     """The processes running the grader's worker that are still alive (zombies excluded), after
     giving killed ones up to ``settle`` seconds to go."""
-    deadline = time.monotonic() + settle
-    while True:
-        found = set()
-        for entry in os.listdir("/proc"):
-            if not entry.isdigit():
-                continue
-            try:
-                cmdline = Path(f"/proc/{entry}/cmdline").read_bytes()
-                state = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()[0]
-            except (OSError, IndexError):
-                continue
-            if state != "Z" and b"worker.py" in cmdline and (b"/grader/" in cmdline or b"hwgrade-kit" in cmdline):
-                found.add(int(entry))
-        if not found or time.monotonic() > deadline:
-            return found
-        time.sleep(0.1)
+    return live_processes(lambda cmdline: b"worker.py" in cmdline and (b"/grader/" in cmdline or b"hwgrade-kit" in cmdline),
+                          settle)
 
 
 @pytest.mark.parametrize("path", CHEAT_FILES, ids=lambda path: path.stem)

@@ -9,10 +9,8 @@ NOT ISOLATED); the limits hold either way.
 from __future__ import annotations
 
 import io
-import os
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +18,7 @@ import pytest
 
 from hwtools.grade import sandbox, worker
 from hwtools.grade.sandbox import Sandbox
+from process_watch import live_processes
 
 KIT = Path(__file__).resolve().parents[1]
 
@@ -141,23 +140,8 @@ def test_endless_loop_ends_at_the_time_limit(mode, request, tmp_path):
 def worker_processes(kit, settle=3.0):
     """Live processes running the worker, in the sandbox (/grader/worker.py) or on ``kit`` without
     one; killed ones get up to ``settle`` seconds to go."""
-    deadline = time.monotonic() + settle
-    while True:
-        found = []
-        for entry in os.listdir("/proc"):
-            if not entry.isdigit():
-                continue
-            try:
-                cmdline = Path(f"/proc/{entry}/cmdline").read_bytes()
-                state = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()[0]
-            except (OSError, IndexError):
-                continue
-            if state != "Z" and (b"/grader/worker.py" in cmdline or
-                                 (b"worker.py" in cmdline and str(kit).encode() in cmdline)):
-                found.append(int(entry))
-        if not found or time.monotonic() > deadline:
-            return found
-        time.sleep(0.1)
+    return live_processes(lambda cmdline: b"/grader/worker.py" in cmdline or
+                          (b"worker.py" in cmdline and str(kit).encode() in cmdline), settle)
 
 
 @pytest.mark.parametrize("mode", ["isolated", "plain"])
