@@ -263,14 +263,22 @@ def _training_shape(args, values):
     return None
 
 
+def _training_run(args, result, want, shape_want=None):
+    """(values, None) of a training run that returned arrays of the right shapes, else (None, the
+    Verdict that fails it: its error, or the shapes it returned against ``shape_want`` or ``want``)."""
+    if result["status"] != "ok":
+        return None, Verdict(False, want, result["error"])
+    wrong_shape = _training_shape(args, result["values"])
+    if wrong_shape:
+        return None, Verdict(False, shape_want or want, wrong_shape)
+    return result["values"], None
+
+
 def judge_known_steps(args, result, expected, services):
     want = "theta[t+1] = theta[t] + learning_rate * central-difference gradient of g at theta[t]"
-    if result["status"] != "ok":
-        return Verdict(False, want, result["error"])
-    values = result["values"]
-    wrong_shape = _training_shape(args, values)
-    if wrong_shape:
-        return Verdict(False, f"{args['iterations']} updates", wrong_shape)
+    values, failed = _training_run(args, result, want, f"{args['iterations']} updates")
+    if failed:
+        return failed
     g = quadratic_objective(args["objective"])
     history = values["params_history"]
     if not _close(history[0], args["initial_params"], 0, 0):
@@ -286,12 +294,9 @@ def judge_known_steps(args, result, expected, services):
 
 def judge_known_rewards(args, result, expected, services):
     want = "rewards[t] = g(theta[t]) after every update"
-    if result["status"] != "ok":
-        return Verdict(False, want, result["error"])
-    values = result["values"]
-    wrong_shape = _training_shape(args, values)
-    if wrong_shape:
-        return Verdict(False, want, wrong_shape)
+    values, failed = _training_run(args, result, want)
+    if failed:
+        return failed
     g = quadratic_objective(args["objective"])
     wanted = np.array([g(theta) for theta in values["params_history"]])
     return Verdict(_close(values["rewards"], wanted, 1e-9, 1e-9), show(wanted), show(values["rewards"]))
@@ -332,12 +337,9 @@ def _real_services(args, result):
 
 def judge_real_rewards(args, result, expected, services):
     want = f"rewards[t] = eval_params(theta[t], {args['rollouts']} rollouts) after every update"
-    if result["status"] != "ok":
-        return Verdict(False, want, result["error"])
-    values = result["values"]
-    wrong_shape = _training_shape(args, values)
-    if wrong_shape:
-        return Verdict(False, want, wrong_shape)
+    values, failed = _training_run(args, result, want)
+    if failed:
+        return failed
     if not _close(values["final_params"], values["params_history"][-1], 0, 0):
         return Verdict(False, "the returned policy has the last parameters", show(values["final_params"]))
     calls = _recorded_reward_calls(args, values)
