@@ -190,6 +190,27 @@ def find_blocks(lines, where, style="code"):
     return blocks
 
 
+def file_blocks(path, name=None):
+    """(block, the lines it indexes into, style) for every solution block of one kit file: a Python
+    file, or the code and Markdown cells of a notebook; any other file has none. ``name`` (default:
+    ``path``) locates errors."""
+    path = Path(path)
+    name = name or str(path)
+    if path.suffix == ".py":
+        sources = [("code", path.read_text(encoding="utf-8"))]
+    elif path.suffix == ".ipynb":
+        sources = [(cell["cell_type"], "".join(cell["source"]))
+                   for cell in json.loads(path.read_text(encoding="utf-8"))["cells"]]
+    else:
+        return []
+    found = []
+    for style, source in sources:
+        if style in ("code", "markdown"):
+            lines = source.split("\n")
+            found += [(block, lines, style) for block in find_blocks(lines, lambda index: f"{name}:{index + 1}", style)]
+    return found
+
+
 def _marker_id(rest, line, location, style):
     todo = rest.strip()
     if not todo:

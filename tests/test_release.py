@@ -22,7 +22,7 @@ from instructor.release import (
     INSTRUCTOR_ONLY,
     ReleaseError,
     build_student_edition,
-    find_blocks,
+    file_blocks,
     kit_files,
     student_files,
     transform_notebook,
@@ -49,17 +49,8 @@ def _tree(root):
 
 
 def _source_blocks(path):
-    """(todo, body lines) of every solution block of a source file."""
-    text = path.read_text(encoding="utf-8")
-    if path.suffix == ".ipynb":
-        found = []
-        for cell in json.loads(text)["cells"]:
-            lines = "".join(cell["source"]).split("\n")
-            style = "markdown" if cell["cell_type"] == "markdown" else "code"
-            found += [(b.todo, lines[b.body_start:b.end], style) for b in find_blocks(lines, str, style)]
-        return found
-    lines = text.split("\n")
-    return [(b.todo, lines[b.body_start:b.end], "code") for b in find_blocks(lines, str)]
+    """(todo, body lines, style) of every solution block of a source file."""
+    return [(block.todo, lines[block.body_start:block.end], style) for block, lines, style in file_blocks(path)]
 
 
 # --------------------------------------------------------------------------------------------

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 
 from hwlib.cartpole import run_episodes
-from instructor.release import HOMEWORK_FOLDERS, build_student_edition, find_blocks, kit_files
+from instructor.release import HOMEWORK_FOLDERS, build_student_edition, file_blocks, kit_files
 
 KIT = Path(__file__).resolve().parents[1]
 NATURAL = KIT / "tests" / "natural_solutions"
@@ -33,20 +33,9 @@ def solution_blocks():
     for name in kit_files(KIT):
         if not name.startswith(HOMEWORK_FOLDERS):
             continue
-        text = (KIT / name).read_text(encoding="utf-8")
-        if name.endswith(".py"):
-            sources = [("code", text)]
-        elif name.endswith(".ipynb"):
-            sources = [(cell["cell_type"], "".join(cell["source"])) for cell in json.loads(text)["cells"]]
-        else:
-            continue
-        for kind, source in sources:
-            if kind not in ("code", "markdown"):
-                continue
-            lines = source.split("\n")
-            for block in find_blocks(lines, lambda index: f"{name}:{index + 1}", kind):
-                given = {line.strip() for line in block.stub}  # the STUB lines are the student's start, not an answer
-                found.append((block.todo, name, [line for line in lines[block.body_start:block.end] if line.strip() not in given]))
+        for block, lines, _ in file_blocks(KIT / name, name):
+            given = {line.strip() for line in block.stub}  # the STUB lines are the student's start, not an answer
+            found.append((block.todo, name, [line for line in lines[block.body_start:block.end] if line.strip() not in given]))
     return found
 
 
