@@ -147,7 +147,7 @@ class EpisodeBatcher:
         self._condition = threading.Condition()
         self._active = num_workers  # threads still running their task
         self._waiting = []  # the key each waiting thread waits for
-        self._requests = {}  # key -> policy: asked for, not yet played
+        self._requests = {}  # key -> (policy, its params when asked): asked for, not yet played
         self._look_ahead = {}  # key -> params: announced, not yet asked for
         self._results = {}  # key -> (round, reward or exception)
         self._trusted = {}  # params bytes -> whether the batch copy of eq. (1) agrees with the policy
@@ -171,7 +171,7 @@ class EpisodeBatcher:
             try:
                 while key not in self._results:
                     if key not in self._requests:
-                        self._requests[key] = policy
+                        self._requests[key] = (policy, params)
                     if self._all_blocked():
                         self._play()
                         self._condition.notify_all()
@@ -203,10 +203,10 @@ class EpisodeBatcher:
         self._requests, self._look_ahead = {}, {}
         self.rounds += 1
         batch_keys, batch_params = [], []
-        for key, policy in requests.items():
-            if self._is_trusted(key[0], policy):
+        for key, (policy, params) in requests.items():
+            if self._is_trusted(key[0], policy, params):
                 batch_keys.append(key)
-                batch_params.append(policy.params)
+                batch_params.append(params)
             else:
                 self._results[key] = (self.rounds, self._play_one(play_episode, policy, key[1]))
         for key, params in look_ahead.items():
@@ -233,12 +233,12 @@ class EpisodeBatcher:
         except Exception as error:  # noqa: BLE001 - raised again in the caller's thread
             return error
 
-    def _is_trusted(self, params_bytes, policy):
+    def _is_trusted(self, params_bytes, policy, params):
         trusted = self._trusted.get(params_bytes)
         if trusted is None:
             from hwlib.cartpole import batch_actions  # noqa: PLC0415
 
-            expected = batch_actions(np.repeat(policy.params[None, :], len(_PROBE_STATES), axis=0), _PROBE_STATES)
+            expected = batch_actions(np.repeat(params[None, :], len(_PROBE_STATES), axis=0), _PROBE_STATES)
             try:
                 actual = [policy(state) for state in _PROBE_STATES]
                 # Python ints (bools included) and numpy integers are what env.step accepts.
