@@ -90,10 +90,17 @@ def play_episode(policy, seed=None, env=None) -> Episode:
 
     Only ``env.reset`` and ``env.step`` are used. Pass ``env`` to reuse an environment.
     """
+    return _play(policy, _check_episode_arguments(policy, seed), env)
+
+
+def _check_episode_arguments(policy, seed):
+    """The door of the episode functions: a callable policy, and a seed or None."""
     if not callable(policy):
         raise TypeError(f"policy must be callable as policy(obs) -> action, got {type(policy).__name__}")
-    if seed is not None:
-        seed = check_seed(seed, "seed")
+    return None if seed is None else check_seed(seed, "seed")
+
+
+def _play(policy, seed, env):
     env = make_env() if env is None else env
     obs, _ = env.reset(seed=seed)
     states, actions, total_reward = [obs], [], 0.0
@@ -114,14 +121,11 @@ def run_policy(policy, seed=None, env=None):
     Inside ``eval_params`` or the learning-rate sweep the episode may be played in a batch with
     others (same reward, see the module docstring); pass ``env`` to force a plain loop in it.
     """
-    if not callable(policy):
-        raise TypeError(f"policy must be callable as policy(obs) -> action, got {type(policy).__name__}")
-    if seed is not None:
-        seed = check_seed(seed, "seed")
+    seed = _check_episode_arguments(policy, seed)
     batcher = _batch.current_batcher()
     if batcher is not None and env is None and seed is not None and isinstance(policy, CartPoleLinearPolicy):
         return batcher.reward(policy, seed)
-    return play_episode(policy, seed=seed, env=env).total_reward
+    return _play(policy, seed, env).total_reward
 
 
 _START_STATES = {}  # seed -> the start state reset(seed=seed) gives; seeds repeat a lot in training
