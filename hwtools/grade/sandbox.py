@@ -180,46 +180,78 @@ class Sandbox:
             command = ["prlimit", f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", "--"] + command
         return command
 
+    def start(self, kit_dir, time_limit=None):
+        """Start one worker on ``kit_dir``: a ``WorkerProcess`` to talk to (``send``/``receive``) and
+        to end (``finish``, which also ends every process it started). Launching and limits live
+        here; what the messages say is the caller's business."""
+        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit))
+
     def run(self, kit_dir, requests, time_limit=None):
         """Send ``requests`` (each ``{"cases": [...]}``) one after the other to a worker on
         ``kit_dir``; the next is sent only when the previous one is answered. Returns a RunOutcome."""
-        time_limit = float(time_limit or self.time_limit)
-        token = uuid.uuid4().hex
+        worker = self.start(kit_dir, time_limit)
         outcome = RunOutcome()
-        started = time.monotonic()
-        deadline = started + time_limit
-        with tempfile.TemporaryDirectory(prefix="hwgrade-run-") as scratch:
-            env = None
-            if not self.isolated:
-                home = Path(scratch) / "home"
-                home.mkdir()
-                env = _worker_env(str(home)) | {TOKEN_VARIABLE: token}
-            process = subprocess.Popen(
-                self.command(kit_dir, time_limit), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                cwd=scratch, env=env, start_new_session=True, close_fds=True)
-            tail = _Tail(process.stderr)
-            try:
-                for request in requests:
-                    protocol.write_message(process.stdin.fileno(), request)
-                    answer = _read_answer(process.stdout.fileno(), deadline)
-                    if isinstance(answer, str):
-                        outcome.status, outcome.detail = answer.split(":", 1)
-                        break
-                    outcome.answers.append(answer)
-                else:
-                    protocol.write_message(process.stdin.fileno(), {"op": "exit"})
-            except (BrokenPipeError, OSError):
-                outcome.status, outcome.detail = "ended", "the worker stopped reading its requests"
-            finally:
-                outcome.exit_code = _finish(process, deadline if outcome.status == "ok" else time.monotonic())
-                if not self.isolated:
-                    _kill_strays(token)
-                tail.join()
-            outcome.stderr_tail = tail.text()
-            outcome.seconds = round(time.monotonic() - started, 3)
-            if outcome.status == "ended":
-                outcome.detail = _ended_detail(outcome.exit_code, outcome.detail)
+        try:
+            for request in requests:
+                worker.send(request)
+                answer = worker.receive()
+                if isinstance(answer, str):
+                    outcome.status, outcome.detail = answer.split(":", 1)
+                    break
+                if not isinstance(answer.get("results"), list):
+                    outcome.status, outcome.detail = "garbled", "an answer without results"
+                    break
+                outcome.answers.append(answer)
+            else:
+                worker.send({"op": "exit"})
+        except (BrokenPipeError, OSError):
+            outcome.status, outcome.detail = "ended", "the worker stopped reading its requests"
+        finally:
+            outcome.exit_code, outcome.stderr_tail, outcome.seconds = worker.finish(graceful=outcome.status == "ok")
+        if outcome.status == "ended":
+            outcome.detail = _ended_detail(outcome.exit_code, outcome.detail)
         return outcome
+
+
+class WorkerProcess:
+    """One running worker: its standard input takes requests, its standard output gives answers,
+    both npz messages (``worker.py``). ``deadline`` (monotonic seconds) ends it at the latest."""
+
+    def __init__(self, sandbox, kit_dir, time_limit):
+        self.sandbox, self.time_limit = sandbox, time_limit
+        self.started = time.monotonic()
+        self.deadline = self.started + time_limit
+        self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-")
+        self._token = uuid.uuid4().hex
+        env = None
+        if not sandbox.isolated:
+            home = Path(self._scratch.name) / "home"
+            home.mkdir()
+            env = _worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
+        self.process = subprocess.Popen(
+            sandbox.command(kit_dir, time_limit), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+            cwd=self._scratch.name, env=env, start_new_session=True, close_fds=True)
+        self._tail = _Tail(self.process.stderr)
+
+    def send(self, message):
+        """Write one request (raises BrokenPipeError/OSError when the worker no longer reads)."""
+        protocol.write_message(self.process.stdin.fileno(), message)
+
+    def receive(self, deadline=None):
+        """The next answer (a dict), or "status:detail" (timeout, ended, garbled)."""
+        return _read_answer(self.process.stdout.fileno(), self.deadline if deadline is None else min(deadline, self.deadline))
+
+    def finish(self, graceful=True):
+        """End the worker and everything it started; (exit code, last lines of its error stream, seconds).
+        ``graceful``: give it until the deadline to exit on its own (it was told to), else kill now."""
+        try:
+            code = _finish(self.process, self.deadline if graceful else time.monotonic())
+            if not self.sandbox.isolated:
+                _kill_strays(self._token)
+            self._tail.join()
+            return code, self._tail.text(), round(time.monotonic() - self.started, 3)
+        finally:
+            self._scratch.cleanup()
 
 
 def _read_answer(fd, deadline):
@@ -252,8 +284,8 @@ def _read_answer(fd, deadline):
             answer = protocol.unpack(buffer)
         except Exception as error:  # noqa: BLE001 - anything the worker's side wrote is untrusted
             return f"garbled:an answer that is not a valid message ({type(error).__name__})"
-        if not isinstance(answer, dict) or not isinstance(answer.get("results"), list):
-            return "garbled:an answer without results"
+        if not isinstance(answer, dict):
+            return "garbled:an answer that is not a message"
         return answer
 
 
