@@ -26,18 +26,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hwtools.grade.worker import quadratic_objective
+from hwtools.grade.probes import training_objective
 
 PUBLIC_SEED = 20_240_131  # the visible inputs' seed: students may know it
 
-# What each TODO's check runs besides the student's block: those blocks keep the reference
-# solution in the kit the worker gets; every other block is a stub.
+# The other TODOs whose functions each TODO's check calls. No kit a student's code runs in holds
+# their code: the worker's copies are proxies that the reference server answers (``served.py``).
 NEEDS = {
     "1.1.1": (),
     "1.2.1": (),
     "1.3.1": ("1.1.1",),
     "1.3.2": ("1.1.1", "1.2.1", "1.3.1"),
-    "1.3.3": (),  # only hwlib/settings.py is run with the student's block; training uses the reference
+    "1.3.3": (),  # only hwlib/settings.py is run with the student's block; the reference server trains
     "2.1.1": ("2.2.1",),
     "2.2.1": (),
     "2.2.2": ("2.2.1",),
@@ -182,8 +182,12 @@ def make_fd_steps(rng, variant):
 
 
 # --------------------------------------------------------------------------------------------
-# 1.3.1 eval_params, judged by property and re-scored by the reference
+# 1.3.1 eval_params, judged by property on the grader's own records of the episodes it played
 # --------------------------------------------------------------------------------------------
+# The worker's run_policy forwards every episode to the trusted side, which plays it with the
+# reference (with a seed of the grader's choosing when the call gave none) and records it; the
+# probe calls eval_params twice with the same arguments. ``result["records"]`` holds, in order,
+# every episode (params, seed, seeded, reward): nothing the student's process says about them.
 
 
 def make_eval_case(rng, variant):
@@ -191,44 +195,59 @@ def make_eval_case(rng, variant):
             "num_rollouts": int((3, 4, 1, 6)[variant % 4]), "seed": int(rng.integers(0, 5_000))}
 
 
-def _episodes_services(args, result):
-    if result["status"] != "ok" or int(result["values"]["episodes"]) != args["num_rollouts"]:
-        return []  # judged without the reference; and a run that played thousands of episodes costs it nothing
-    values = result["values"]
-    return [("episode_rewards", {"params": values["episode_params"], "seeds": values["episode_seeds"]})]
+def _eval_episodes(args, result):
+    """(params, seeds, seeded, rewards) of the run_policy episodes of the case, or the Verdict's
+    actual text when there are not num_rollouts of them for each of the two calls."""
+    records, count = result["records"], args["num_rollouts"]
+    direct = records["episode_direct"]
+    params, seeds = records["episode_params"][direct], records["episode_seeds"][direct]
+    seeded, rewards = records["episode_seeded"][direct], records["episode_rewards"][direct]
+    if len(seeds) != 2 * count:
+        return None, (f"{len(seeds)} episode(s) played with run_policy in two calls of eval_params with "
+                      f"num_rollouts={count}")
+    return (params, seeds, seeded, rewards), None
+
+
+def _shown_seeds(seeds, seeded):
+    return "[" + ", ".join(str(int(s)) if flag else "unseeded" for s, flag in zip(seeds, seeded)) + "]"
 
 
 def judge_eval_mean(args, result, expected, services):
-    want = f"the mean of {args['num_rollouts']} episode reward(s) of params {show(args['params'])}"
+    count = args["num_rollouts"]
+    want = f"the mean of {count} episode reward(s) of params {show(args['params'])}, each from its own start state"
     if result["status"] != "ok":
         return Verdict(False, want, result["error"])
-    values = result["values"]
-    played = int(values["episodes"])
-    if played != args["num_rollouts"]:
-        return Verdict(False, want, f"{played} episode(s) played with run_policy, returned {show(values['value'])}")
-    if not np.array_equal(values["episode_params"], np.repeat(np.asarray(args["params"])[None, :], played, axis=0)):
-        return Verdict(False, want, f"episodes played with other parameters: {show(values['episode_params'])}")
-    rescored = services[0]["values"]["rewards"] if services and services[0]["status"] == "ok" else None
-    if rescored is None:
-        return Verdict(False, want, "the reference could not re-score the episodes")
-    mean = float(np.mean(rescored))
-    return Verdict(_close(values["value"], mean, 1e-9, 1e-9), f"{want}: {show(mean)}", show(values["value"]))
+    episodes, problem = _eval_episodes(args, result)
+    if problem:
+        return Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}")
+    params, seeds, seeded, rewards = (part[:count] for part in episodes)
+    if not np.array_equal(params, np.repeat(np.asarray(args["params"], dtype=np.float64)[None, :], count, axis=0)):
+        return Verdict(False, want, f"episodes played with other parameters: {show(params)}")
+    if len(set(seeds.tolist())) != count:
+        return Verdict(False, want, f"episodes from the same start state: seeds {_shown_seeds(seeds, seeded)}")
+    mean = float(np.mean(rewards))
+    value = result["values"]["value"]
+    return Verdict(_close(value, mean, 1e-9, 1e-9), f"{want}: {show(mean)} (rewards {show(rewards)})", show(value))
 
 
 def judge_eval_distinct(args, result, expected, services):
-    want = f"{args['num_rollouts']} episodes from {args['num_rollouts']} different seeds"
+    count = args["num_rollouts"]
+    want = f"{count} episodes from {count} different seeds"
     if result["status"] != "ok":
         return Verdict(False, want, result["error"])
-    seeds = result["values"]["episode_seeds"]
-    return Verdict(len(seeds) == args["num_rollouts"] and len(set(seeds.tolist())) == len(seeds), want,
-                   f"{len(seeds)} episode(s), seeds {show(seeds)}")
+    episodes, problem = _eval_episodes(args, result)
+    if problem:
+        return Verdict(False, want, problem)
+    seeds, seeded = episodes[1][:count], episodes[2][:count]
+    return Verdict(len(set(seeds.tolist())) == count, want, f"seeds {_shown_seeds(seeds, seeded)}")
 
 
 def judge_eval_repeat(args, result, expected, services):
     if result["status"] != "ok":
         return Verdict(False, "the same number twice", result["error"])
-    values = result["values"]
-    seeded = bool(np.all(values["episode_seeded"])) and len(values["episode_seeded"]) > 0
+    values, records = result["values"], result["records"]
+    flags = records["episode_seeded"][records["episode_direct"]]
+    seeded = len(flags) > 0 and bool(np.all(flags))
     same = _close(values["value_again"], values["value"], 0, 0)
     actual = f"{show(values['value'])}, then {show(values['value_again'])}"
     if not seeded:
@@ -237,17 +256,21 @@ def judge_eval_repeat(args, result, expected, services):
 
 
 # --------------------------------------------------------------------------------------------
-# 1.3.2 the training loop: a known objective, and a real run re-scored
+# 1.3.2 the training loop: a known objective, and a real run, on the grader's records
 # --------------------------------------------------------------------------------------------
+# In ``train_known`` cases every eval_params call is answered by the grader with the case's known
+# objective g (a quartic, so that central differences depend on the step) and recorded with its
+# rollouts and seed; in ``train_real`` cases the reference server answers it and the grader
+# records the same, with the reference's value. The judges read these records.
 
 
 def make_known_training(rng, variant):
     basis = rng.normal(size=(4, 4))
     return {"objective": {"A": basis @ basis.T / 8.0 + 0.5 * np.eye(4), "m": rng.normal(size=4),
-                          "c": float(rng.uniform(100, 400))},
-            "iterations": int(3 + variant), "rollouts": 2, "learning_rate": float((0.07, 0.12, 0.2)[variant % 3]),
-            "fd_step": float((0.5, 0.25, 0.4)[variant % 3]), "seed": int(rng.integers(0, 100)),
-            "initial_params": rng.normal(size=4) * 0.5}
+                          "q": rng.uniform(0.01, 0.05, size=4), "c": float(rng.uniform(100, 400))},
+            "iterations": int(3 + variant), "rollouts": int((2, 3)[variant % 2]),
+            "learning_rate": float((0.07, 0.12, 0.2)[variant % 3]), "fd_step": float((0.5, 0.25, 0.4)[variant % 3]),
+            "seed": int(rng.integers(0, 100)), "initial_params": rng.normal(size=4) * 0.5}
 
 
 def central_difference(g, theta, step):
@@ -274,19 +297,40 @@ def _training_run(args, result, want, shape_want=None):
     return result["values"], None
 
 
+def _rollouts_used(args, result):
+    """None if every recorded evaluation asked for num_rollouts_per_eval episodes, else the Verdict's actual."""
+    rollouts = result["records"]["evaluation_rollouts"]
+    wrong = np.flatnonzero(rollouts != args["rollouts"])
+    if len(rollouts) == 0:
+        return "eval_params was never called"
+    if wrong.size:
+        return (f"evaluation {int(wrong[0]) + 1} of {len(rollouts)} asked eval_params for {int(rollouts[wrong[0]])} "
+                f"rollout(s); num_rollouts_per_eval is {args['rollouts']}")
+    return None
+
+
 def judge_known_steps(args, result, expected, services):
-    want = "theta[t+1] = theta[t] + learning_rate * central-difference gradient of g at theta[t]"
+    want = (f"every iteration: g from eval_params with num_rollouts_per_eval = {args['rollouts']} rollouts, "
+            "theta[t+1] = theta[t] + learning_rate * central-difference gradient of g at theta[t] with step "
+            "fd_step, and rewards[t+1] = g(theta[t+1])")
     values, failed = _training_run(args, result, want, f"{args['iterations']} updates")
     if failed:
         return failed
-    g = quadratic_objective(args["objective"])
-    history = values["params_history"]
+    g = training_objective(args["objective"])
+    history, rewards = values["params_history"], values["rewards"]
     if not _close(history[0], args["initial_params"], 0, 0):
         return Verdict(False, f"theta[0] = initial_params = {show(args['initial_params'])}", show(history[0]))
+    wrong_rollouts = _rollouts_used(args, result)
+    if wrong_rollouts:
+        return Verdict(False, want, wrong_rollouts)
     for t in range(args["iterations"]):
         step = history[t] + args["learning_rate"] * central_difference(g, history[t], args["fd_step"])
         if not _close(history[t + 1], step, 1e-9, 1e-9):
-            return Verdict(False, f"theta[{t + 1}] = {show(step)}", f"theta[{t + 1}] = {show(history[t + 1])}")
+            return Verdict(False, f"theta[{t + 1}] = {show(step)} (step fd_step = {show(args['fd_step'])})",
+                           f"theta[{t + 1}] = {show(history[t + 1])}")
+        if not _close(rewards[t + 1], g(history[t + 1]), 1e-9, 1e-9):
+            return Verdict(False, f"rewards[{t + 1}] = g(theta[{t + 1}]) = {show(g(history[t + 1]))}, the reward "
+                                  "after the update", f"rewards[{t + 1}] = {show(rewards[t + 1])}")
     if not _close(values["final_params"], history[-1], 0, 0):
         return Verdict(False, f"the returned policy has theta[{args['iterations']}]", show(values["final_params"]))
     return Verdict(True)
@@ -297,60 +341,55 @@ def judge_known_rewards(args, result, expected, services):
     values, failed = _training_run(args, result, want)
     if failed:
         return failed
-    g = quadratic_objective(args["objective"])
+    g = training_objective(args["objective"])
     wanted = np.array([g(theta) for theta in values["params_history"]])
     return Verdict(_close(values["rewards"], wanted, 1e-9, 1e-9), show(wanted), show(values["rewards"]))
 
 
 def make_real_training(rng, variant):
     # Rates that do not converge on the notebook's run: the inputs shown to students give no 1.3.3 answer away.
+    # A step other than the settings' 0.5, so that a run that ignores fd_step shows.
     return {"iterations": 2, "rollouts": 3, "learning_rate": float((0.0003, 0.0002)[variant % 2]),
-            "fd_step": 0.5, "seed": int(rng.integers(0, 1000)), "initial_params": rng.normal(size=4) * 0.05}
+            "fd_step": 0.35, "seed": int(rng.integers(0, 1000)), "initial_params": rng.normal(size=4) * 0.05}
 
 
-def _recorded_reward_calls(args, values):
-    """For every update t >= 1, the recorded eval_params call at theta[t] with num_rollouts_per_eval
-    episodes whose value is rewards[t]; None where there is none."""
-    history, rewards = values["params_history"], values["rewards"]
-    found = []
-    for t in range(1, len(rewards)):
-        match = None
-        for index in range(len(values["call_values"])):
-            if values["call_rollouts"][index] == args["rollouts"] and np.array_equal(values["call_params"][index], history[t]) \
-                    and values["call_values"][index] == rewards[t]:
-                match = index
-                break
-        found.append(match)
-    return found
-
-
-def _real_services(args, result):
-    if result["status"] != "ok" or _training_shape(args, result["values"]):
-        return []
-    values = result["values"]
-    calls = [index for index in _recorded_reward_calls(args, values) if index is not None]
-    if not calls:
-        return []
-    return [("eval_many", {"params": values["call_params"][calls], "rollouts": values["call_rollouts"][calls],
-                           "seeds": values["call_seeds"][calls]})]
+def _at(points, target):
+    return [index for index, point in enumerate(points) if np.allclose(point, target, rtol=1e-12, atol=1e-12)]
 
 
 def judge_real_rewards(args, result, expected, services):
-    want = f"rewards[t] = eval_params(theta[t], {args['rollouts']} rollouts) after every update"
+    want = (f"every update: theta[t] = theta[t-1] + learning_rate * (g(theta + h e_i) - g(theta - h e_i)) / 2h "
+            f"with h = fd_step = {show(args['fd_step'])}, g from eval_params with {args['rollouts']} rollouts "
+            "(both of one seed), and rewards[t] = eval_params of theta[t] after the update")
     values, failed = _training_run(args, result, want)
     if failed:
         return failed
-    if not _close(values["final_params"], values["params_history"][-1], 0, 0):
+    history, rewards, records = values["params_history"], values["rewards"], result["records"]
+    if not _close(values["final_params"], history[-1], 0, 0):
         return Verdict(False, "the returned policy has the last parameters", show(values["final_params"]))
-    calls = _recorded_reward_calls(args, values)
-    for t, index in enumerate(calls, start=1):
-        if index is None:
-            return Verdict(False, want, f"rewards[{t}] = {show(values['rewards'][t])} is no evaluation of theta[{t}] "
-                                        f"with {args['rollouts']} rollouts")
-    rescored = services[0]["values"]["values"] if services and services[0]["status"] == "ok" else None
-    if rescored is None or not _close(rescored, values["rewards"][1:], 0, 1e-9):
-        return Verdict(False, want, f"the reference's score of theta[1:] is {show(rescored)}, "
-                                    f"the run recorded {show(values['rewards'][1:])}")
+    wrong_rollouts = _rollouts_used(args, result)
+    if wrong_rollouts:
+        return Verdict(False, want, wrong_rollouts)
+    points, seeds, scores = records["evaluation_params"], records["evaluation_seeds"], records["evaluation_values"]
+    h, rate = args["fd_step"], args["learning_rate"]
+    for t in range(1, len(rewards)):
+        latest = -1
+        for i in range(4):
+            offset = np.zeros(4)
+            offset[i] = h
+            pairs = [(a, b) for a in _at(points, history[t - 1] + offset) for b in _at(points, history[t - 1] - offset)
+                     if seeds[a] == seeds[b]]
+            good = [(a, b) for a, b in pairs
+                    if _close(history[t][i], history[t - 1][i] + rate * ((scores[a] - scores[b]) / (2.0 * h)), 1e-9, 1e-9)]
+            if not good:
+                found = "no evaluations at theta[t-1] +- h e_i" if not pairs else \
+                    f"evaluations there give theta[{t}][{i}] = {show(history[t - 1][i] + rate * (scores[pairs[0][0]] - scores[pairs[0][1]]) / (2.0 * h))}"
+                return Verdict(False, want, f"theta[{t}][{i}] = {show(history[t][i])}: {found}")
+            latest = max(latest, min(max(pair) for pair in good))
+        after = [index for index in _at(points, history[t]) if index > latest and scores[index] == rewards[t]]
+        if not after:
+            return Verdict(False, want, f"rewards[{t}] = {show(rewards[t])} is no evaluation of theta[{t}] made after "
+                                        "its update")
     return Verdict(True)
 
 
@@ -474,20 +513,24 @@ BEHAVIOURS = (
               "only coordinate i moves, by +-h_i", "finite_diff", make_fd_steps, exact("gradient", 1e-7, 1e-9),
               exact=True),
     Behaviour("1.3.1", "mean-reward", 3, "eval_params returns the mean total reward of num_rollouts episodes of "
-              "CartPoleLinearPolicy(params) played with run_policy (each episode re-scored by the reference)",
-              "eval_params", make_eval_case, judge_eval_mean, visible_count=3, services=_episodes_services),
+              "CartPoleLinearPolicy(params), each from its own start state, played with run_policy (every episode "
+              "is played and recorded on the grader's side)", "eval_params", make_eval_case, judge_eval_mean,
+              visible_count=3),
     Behaviour("1.3.1", "different-starts", 1, "the episodes of one evaluation start from different start states "
               "(no seed used twice)", "eval_params", make_eval_case, judge_eval_distinct, visible_count=2),
     Behaviour("1.3.1", "repeatable", 1, "the same call gives the same number again: every episode is seeded from "
               "the seed argument", "eval_params", make_eval_case, judge_eval_repeat, visible_count=2),
-    Behaviour("1.3.2", "equation-4", 3, "on a known smooth objective g standing in for eval_params, every iteration "
-              "takes the step of equation (4): theta <- theta + learning_rate * (central-difference gradient of g)",
-              "train_known", make_known_training, judge_known_steps),
+    Behaviour("1.3.2", "equation-4", 3, "on a known smooth objective g standing in for eval_params (with a quartic "
+              "term, so the step matters), every iteration evaluates g with num_rollouts_per_eval rollouts, takes "
+              "the step of equation (4), theta <- theta + learning_rate * (central-difference gradient of g with "
+              "step fd_step), and records g of the new parameters", "train_known", make_known_training,
+              judge_known_steps),
     Behaviour("1.3.2", "records-reward", 1, "on the same objective, rewards[t] is g of the parameters after update t",
               "train_known", make_known_training, judge_known_rewards),
-    Behaviour("1.3.2", "real-run", 1, "in a short real CartPole run, rewards[t] is eval_params of the parameters "
-              "after update t with num_rollouts_per_eval episodes (re-scored by the reference)",
-              "train_real", make_real_training, judge_real_rewards, visible_count=1, services=_real_services),
+    Behaviour("1.3.2", "real-run", 1, "in a short real CartPole run, every update is equation (4) with central "
+              "differences of step fd_step from eval_params calls with num_rollouts_per_eval episodes, and "
+              "rewards[t] is eval_params of the parameters after update t (on the grader's records of every "
+              "evaluation)", "train_real", make_real_training, judge_real_rewards, visible_count=1),
     Behaviour("1.3.3", "converges", 2, "with your LEARNING_RATE, the notebook's training run (the reference's "
               "training code, settings.TRAINING_SEED, from zeros) reaches reward 500 within 7 iterations and "
               "stays there", "settings_value", make_learning_rate, judge_learning_rate, visible_count=1,
