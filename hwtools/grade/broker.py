@@ -292,8 +292,9 @@ def accept(reply, probe, hidden):
 
 
 def _ended(code, phase):
+    """Why the worker ended, in fixed words: once hidden inputs were sent, not even the signal."""
     if phase == "hidden":
-        return "the run stopped during the hidden checks"
+        return STOPS["ended"] + " (during the hidden checks)"
     if code is not None and code < 0:
         return f"the worker was ended: {_SIGNALS.get(-code, 'a signal')}"
     return "the worker ended before answering (sys.exit or os._exit in the code?)"
@@ -327,8 +328,7 @@ def run_cases(process, todo, visible, hidden, pool):
     if outcome.status == "ended":
         outcome.detail = _ended(outcome.exit_code, outcome.phase)
     elif outcome.status != "ok":
-        outcome.detail = STOPS[outcome.status] if outcome.phase != "hidden" or outcome.status == "timeout" else \
-            "the run stopped during the hidden checks"
+        outcome.detail = STOPS[outcome.status]
     return outcome, results
 
 

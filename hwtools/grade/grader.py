@@ -28,7 +28,8 @@ import weakref
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from hwtools.grade import answer_key, blocks, broker, checks, judging
+from hwtools.grade import answer_key as keys
+from hwtools.grade import blocks, broker, checks, judging
 from hwtools.grade.answer_key import ANSWER_KEY
 from hwtools.grade.channel import fingerprint
 from hwtools.grade.reference import ReferencePool, ServerFailed, runtime_files
@@ -77,8 +78,8 @@ def load_hidden_checks(reference_dir):
 
 def read_answer_key(path):
     try:
-        return answer_key.read(path)
-    except answer_key.AnswerKeyError as error:
+        return keys.read(path)
+    except keys.AnswerKeyError as error:
         raise GradingError(str(error)) from None
 
 
@@ -128,8 +129,8 @@ class Grader:
         self.cases = {todo: checks.case_set(todo, self.hidden) for todo in checks.GRADED_TODOS}
         if self.key is not None:
             try:
-                answer_key.check_matches(self.key, self.cases)
-            except answer_key.AnswerKeyError as error:
+                keys.check_matches(self.key, self.cases)
+            except keys.AnswerKeyError as error:
                 raise GradingError(str(error)) from None
         self.sandbox = Sandbox(python or default_python(self.reference), isolation, time_limit, memory_limit)
         self.jobs = max(1, int(jobs or min(4, os.cpu_count() or 1)))
@@ -360,4 +361,4 @@ def write_answer_key(reference_kit, out_path, python=None, isolation="auto"):
                     if result["status"] != "ok":
                         raise GradingError(f"the reference fails visible check {case_id}: {result['error']}")
                     expected[case_id] = result["values"]
-        return answer_key.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path)
+        return keys.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path)

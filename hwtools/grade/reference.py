@@ -29,6 +29,7 @@ import queue
 import tempfile
 import threading
 import time
+import weakref
 from pathlib import Path
 
 from hwtools.grade import blocks
@@ -91,7 +92,7 @@ class ReferenceServer:
 
     def __init__(self, sandbox, kit_dir, lifetime=LIFETIME):
         self.process = _spawn(lambda: sandbox.start(kit_dir, lifetime))
-        self.sent, self.broken, self.last_used = 0, False, time.monotonic()
+        self.sent, self.broken, self.closed, self.last_used = 0, False, False, time.monotonic()
         try:
             number = self.send({"op": "setup", "mode": "server"})
             reply = self.receive(time.monotonic() + SETUP_SECONDS)
@@ -134,7 +135,9 @@ class ReferenceServer:
         return reply
 
     def close(self):
-        self.broken = True
+        if self.closed:
+            return None
+        self.broken = self.closed = True
         try:
             self.process.send({"op": "exit", "n": self.sent + 1})
         except OSError:
@@ -151,6 +154,11 @@ class ReferencePool:
         self.digest = blocks.files_digest(self.files)
         self._folder, self._idle, self._lock, self._timer, self._closed = None, [], threading.Lock(), None, False
         self.started = 0  # servers started so far (for tests and benchmarks)
+        self.live = weakref.WeakSet()  # servers not yet closed
+
+    def process_ids(self):
+        """The process ids of this pool's live servers (the launcher's process of each)."""
+        return {server.process.process.pid for server in list(self.live) if not server.closed}
 
     def _kit(self):
         if self._folder is None:
@@ -170,7 +178,9 @@ class ReferencePool:
                 threading.Thread(target=server.close, daemon=True).start()
             kit = self._kit()
             self.started += 1
-        return ReferenceServer(self.sandbox, kit, max(self.lifetime, need + SETUP_SECONDS + 60))
+        server = ReferenceServer(self.sandbox, kit, max(self.lifetime, need + SETUP_SECONDS + 60))
+        self.live.add(server)
+        return server
 
     def release(self, server, broken=False):
         if server is None:
