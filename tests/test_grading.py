@@ -9,11 +9,9 @@ grader has already run (the same TODO with the same code) is not run again.
 from __future__ import annotations
 
 import base64
-import binascii
 import json
 import os
 import re
-import resource
 import subprocess
 import zlib
 import sys
@@ -24,6 +22,7 @@ import pytest
 
 from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, served, write_answer_key
 from hwtools.grade.feedback import render
+from cheats import leak_search
 from process_watch import live_processes
 
 KIT = Path(__file__).resolve().parents[1]
@@ -386,7 +385,20 @@ def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answe
             assert set(entry["first_failure"]) == {"check", "hidden", "input"}
         if entry["id"] in cheat["hardcode"]:  # right on every visible input, wrong on the hidden ones
             assert all(check["failed_on"] == "hidden" for check in entry["checks"]), entry
-    assert_nothing_leaks(result, secrets)
+    leak_search.assert_nothing_leaks(result, secrets)
+
+
+def test_an_answer_that_would_inflate_is_refused_unread(layout, tmp_path, answer_key):
+    """The zip-bomb cheat, graded in a fresh process: its peak memory stays far below the 300 MB
+    the answer would inflate to (nothing is decompressed, no array is made from a header's shape)."""
+    build_cheat(layout, parse_cheat(CHEATS / "zip_bomb.txt"), tmp_path / "kit", answer_key)
+    code = ("import json, resource, sys; from hwtools.grade import Grader; "
+            f"result = Grader({str(KIT)!r}, time_limit={TIME_LIMIT}).grade({str(tmp_path / 'kit')!r}, todos=['2.2.1']); "
+            "print(json.dumps([result['todos'][0]['status'], resource.getrusage(resource.RUSAGE_SELF).ru_maxrss]))")
+    run = subprocess.run([sys.executable, "-c", code], cwd=KIT, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    status, peak_kib = json.loads(run.stdout.strip().splitlines()[-1])
+    assert status == "crashed" and peak_kib < 200 * 1024, (status, peak_kib)
 
 
 # --------------------------------------------------------------------------------------------
@@ -394,95 +406,14 @@ def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answe
 # --------------------------------------------------------------------------------------------
 
 
-def outputs_of(result):
-    """Everything a student may read of ``result``: the text report, the JSON, the class feedback
-    file and Gradescope's results.json."""
-    from hwtools.grade import classroom, gradescope
-
-    student = classroom.StudentResult("student", classroom.status_of(result), result)
-    return [render(result), json.dumps(result), classroom.feedback_markdown(student),
-            json.dumps(gradescope.results_json(result, classroom.status_of(result)))]
-
-
-def decodings(texts, rounds=3):
-    """``texts`` as bytes, plus every base64, base32, hex and zlib/gzip/deflate decoding of what
-    they contain, and of those again (``rounds`` deep; truncated streams give what they hold)."""
-    found, frontier = set(), {text.encode("utf-8", "replace") for text in texts}
-    for _ in range(rounds):
-        found |= frontier
-        fresh = set()
-        for data in frontier:
-            for wbits in (15, -15, 31):
-                try:
-                    inflated = zlib.decompressobj(wbits).decompress(data, 10_000_000)
-                except zlib.error:
-                    continue
-                if inflated:
-                    fresh.add(inflated)
-            text = data.decode("latin-1")
-            for token in set(re.findall(r"[A-Za-z0-9+/=_-]{16,}", text)):
-                body = token.rstrip("=")
-                candidates = []
-                for alphabet in (None, b"-_"):
-                    try:
-                        candidates.append(base64.b64decode(body[:len(body) // 4 * 4], altchars=alphabet))
-                    except (ValueError, binascii.Error):
-                        pass
-                if re.fullmatch(r"[0-9A-Fa-f]+", token):
-                    candidates.append(bytes.fromhex(token[:len(token) // 2 * 2]))
-                if re.fullmatch(r"[A-Z2-7=]+", token):
-                    try:
-                        candidates.append(base64.b32decode(body[:len(body) // 8 * 8]))
-                    except (ValueError, binascii.Error):
-                        pass
-                fresh.update(candidate for candidate in candidates if len(candidate) >= 8)
-        frontier = fresh - found
-    return found
-
-
 @pytest.fixture(scope="module")
 def secrets(grader, layout):
-    """What no output may hold: the lines of the reference's blocks (those not also in the kit's
-    public code) and the hidden inputs' numbers (as text, strong formats, and as float64 bytes)."""
-    public = "\n".join(blocks.composite_files(layout, {}, set()).values())
-    lines = [line for line in grader._secret_lines if line not in public]
-    strong, weak, raw = set(), [], set()
-    for todo, cases in grader.cases.items():
-        for case_id, _, args in cases.hidden:
-            numbers = [float(v) for v in _floats(args) if abs(v) >= 1e-3 and len(f"{abs(v):.6g}".replace(".", "")) >= 5]
-            for value in numbers:
-                strong.update({repr(value), f"{value:.10g}", f"{value:.8f}"})
-                raw.add(np.float64(value).tobytes())
-            weak.append((case_id, {f"{value:.6g}" for value in numbers}))
-    assert lines and strong and raw
-    return {"lines": lines, "strong": strong, "weak": weak, "raw": raw}
-
-
-def _floats(value):
-    if isinstance(value, dict):
-        return [item for part in value.values() for item in _floats(part)]
-    if isinstance(value, (list, tuple)):
-        return [item for part in value for item in _floats(part)]
-    array = np.asarray(value)
-    return list(array.ravel()) if array.dtype.kind == "f" else []
-
-
-def assert_nothing_leaks(result, secrets):
-    for data in decodings(outputs_of(result)):
-        text = data.decode("utf-8", "replace")
-        line = next((line for line in secrets["lines"] if line in text), None)
-        assert line is None, f"a line of the reference solution reached an output: {line!r}"
-        number = next((number for number in secrets["strong"] if number in text), None)
-        assert number is None, f"a hidden input's number reached an output: {number}"
-        assert not any(pattern in data for pattern in secrets["raw"]), "a hidden input's bytes reached an output"
-        for case_id, shown in secrets["weak"]:
-            hits = [number for number in shown if number in text]
-            assert len(hits) < 3, f"numbers of hidden input {case_id} reached an output: {hits}"
+    return leak_search.secrets_of(grader, layout)
 
 
 def test_the_leak_search_finds_what_it_looks_for(grader, secrets):
     """The search must be able to fail: a reference line and a hidden input, compressed and encoded."""
-    line, (case_id, _, args) = secrets["lines"][0], grader.cases["1.2.1"].hidden[0]
+    line, (_, _, args) = secrets["lines"][0], grader.cases["1.2.1"].hidden[0]
     for planted in (base64.b64encode(zlib.compress(line.encode())).decode()[:60],
                     zlib.compress(repr(args).encode()).hex(),
                     base64.b64encode(np.asarray(args["x"], dtype=np.float64).tobytes()).decode()):
@@ -493,7 +424,7 @@ def test_the_leak_search_finds_what_it_looks_for(grader, secrets):
                 "isolation": "", "submission": "s", "reference": "r", "one_mistake_one_place": True,
                 "total": {"auto_earned": 0, "auto_possible": 39, "manual_possible": 21}}
         with pytest.raises(AssertionError, match="reached an output"):
-            assert_nothing_leaks(fake, secrets)
+            leak_search.assert_nothing_leaks(fake, secrets)
 
 
 # --------------------------------------------------------------------------------------------

@@ -302,8 +302,13 @@ def _npy(array):
 META = _npy(np.frombuffer(b'{"x": {"__array__": "a0"}}', dtype=np.uint8))
 
 
-@pytest.mark.parametrize("forgery", ["deflated", "lying header", "object dtype", "other name", "extra bytes",
-                                     "too large", "truncated", "unicode structure", "comment"])
+REFUSALS = {"deflated": "compressed", "lying header": "does not match its bytes", "object dtype": "numbers only",
+            "other name": "member this grader does not write", "extra bytes": "does not match its bytes",
+            "too large": "larger than", "truncated": "no end record", "unicode structure": "numbers only",
+            "comment": "no end record"}
+
+
+@pytest.mark.parametrize("forgery", list(REFUSALS))
 def test_a_forged_archive_is_refused_before_anything_is_inflated_or_allocated(forgery):
     lying = bytearray(_npy(np.zeros(4)))
     lying[lying.index(b"(4,)"):lying.index(b"(4,)") + 4] = b"(9,)"
@@ -318,7 +323,7 @@ def test_a_forged_archive_is_refused_before_anything_is_inflated_or_allocated(fo
         "unicode structure": lambda: _archive({"__json__.npy": _npy(np.array('{"x": 1}')), "a0.npy": _npy(np.zeros(1))}),
         "comment": lambda: channel.pack({"x": np.zeros(3)})[:-2] + struct.pack("<H", 4) + b"abcd",
     }[forgery]()
-    with pytest.raises(channel.MessageError):
+    with pytest.raises(channel.MessageError, match=REFUSALS[forgery]):
         channel.unpack(data)
 
 

@@ -26,7 +26,6 @@ visible ones first, then, only once each of those is answered, the hidden ones. 
 from __future__ import annotations
 
 import secrets
-import time
 from dataclasses import dataclass, field
 
 import numpy as np

@@ -24,7 +24,6 @@ Nothing here is trusted by the grader: it checks every message against what it a
 from __future__ import annotations
 
 import builtins
-import importlib
 import inspect
 import os
 import sys
