@@ -68,6 +68,7 @@ class Behaviour:
     visible_count: int = 2
     services: object = None  # services(args, result) -> [(probe, args)]: reference runs the judge needs
     exact: bool = False  # judged against the reference's values on the same input
+    judged_on: str = ""  # the key of another behaviour of the TODO whose cases this one judges (it has none of its own)
 
     @property
     def id(self):
@@ -268,7 +269,7 @@ def make_known_training(rng, variant):
     basis = rng.normal(size=(4, 4))
     return {"objective": {"A": basis @ basis.T / 8.0 + 0.5 * np.eye(4), "m": rng.normal(size=4),
                           "q": rng.uniform(0.01, 0.05, size=4), "c": float(rng.uniform(100, 400))},
-            "iterations": int(3 + variant), "rollouts": int((2, 3)[variant % 2]),
+            "iterations": int(2 + variant), "rollouts": int((2, 3)[variant % 2]),
             "learning_rate": float((0.07, 0.12, 0.2)[variant % 3]), "fd_step": float((0.5, 0.25, 0.4)[variant % 3]),
             "seed": int(rng.integers(0, 100)), "initial_params": rng.normal(size=4) * 0.5}
 
@@ -517,16 +518,16 @@ BEHAVIOURS = (
               "is played and recorded on the grader's side)", "eval_params", make_eval_case, judge_eval_mean,
               visible_count=3),
     Behaviour("1.3.1", "different-starts", 1, "the episodes of one evaluation start from different start states "
-              "(no seed used twice)", "eval_params", make_eval_case, judge_eval_distinct, visible_count=2),
+              "(no seed used twice)", "eval_params", make_eval_case, judge_eval_distinct, judged_on="mean-reward"),
     Behaviour("1.3.1", "repeatable", 1, "the same call gives the same number again: every episode is seeded from "
-              "the seed argument", "eval_params", make_eval_case, judge_eval_repeat, visible_count=2),
+              "the seed argument", "eval_params", make_eval_case, judge_eval_repeat, judged_on="mean-reward"),
     Behaviour("1.3.2", "equation-4", 3, "on a known smooth objective g standing in for eval_params (with a quartic "
               "term, so the step matters), every iteration evaluates g with num_rollouts_per_eval rollouts, takes "
               "the step of equation (4), theta <- theta + learning_rate * (central-difference gradient of g with "
               "step fd_step), and records g of the new parameters", "train_known", make_known_training,
               judge_known_steps),
     Behaviour("1.3.2", "records-reward", 1, "on the same objective, rewards[t] is g of the parameters after update t",
-              "train_known", make_known_training, judge_known_rewards),
+              "train_known", make_known_training, judge_known_rewards, judged_on="equation-4"),
     Behaviour("1.3.2", "real-run", 1, "in a short real CartPole run, every update is equation (4) with central "
               "differences of step fd_step from eval_params calls with num_rollouts_per_eval episodes, and "
               "rewards[t] is eval_params of the parameters after update t (on the grader's records of every "
@@ -585,9 +586,18 @@ class CaseSet:
                 for phase in phases]
 
 
+def cases_of(behaviour):
+    """The behaviour whose cases ``behaviour`` is judged on (itself, or the one it names)."""
+    if not behaviour.judged_on:
+        return behaviour
+    return next(other for other in BEHAVIOURS_BY_TODO[behaviour.todo] if other.key == behaviour.judged_on)
+
+
 def case_set(todo, hidden_module=None):
     cases = CaseSet(todo)
     for behaviour in BEHAVIOURS_BY_TODO[todo]:
+        if behaviour.judged_on:
+            continue  # judged on the cases of another behaviour
         for number, args in enumerate(behaviour.visible_cases()):
             cases.visible.append((f"{behaviour.id}/v{number}", behaviour, args))
         if hidden_module is not None:

@@ -318,9 +318,12 @@ class Grader:
             return []
         outcome, results = student
         needed = []
-        for case_id, behaviour, args in self.cases[todo].visible + self.cases[todo].hidden:
-            if behaviour.services is not None:
-                needed.extend(behaviour.services(args, results.get(case_id) or broker.missing(outcome)))
+        for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
+            if behaviour.services is None:
+                continue
+            for case_id, case_behaviour, args in self.cases[todo].visible + self.cases[todo].hidden:
+                if case_behaviour is checks.cases_of(behaviour):
+                    needed.extend(behaviour.services(args, results.get(case_id) or broker.missing(outcome)))
         return needed
 
     def _services(self, needed, pool):

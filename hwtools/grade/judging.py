@@ -70,10 +70,10 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
     reference = run["reference"] or {}
     earned, warnings = 0.0, []
     for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
-        verdicts = []
+        verdicts, source = [], checks.cases_of(behaviour)
         for visible, phase in ((True, cases.visible), (False, cases.hidden)):
             for case_id, case_behaviour, args in phase:
-                if case_behaviour is not behaviour:
+                if case_behaviour is not source:
                     continue
                 result = results.get(case_id) or broker.missing(outcome, isinstance(student, str) and student)
                 if visible:

@@ -25,6 +25,7 @@ Interface (for the grader and the broker)::
 
 from __future__ import annotations
 
+import functools
 import queue
 import tempfile
 import threading
@@ -249,8 +250,13 @@ class ReferencePool:
 def runtime_files():
     """{relative path: text} of the process side of grading, which the grader puts in every kit it
     runs (as the package ``_hwgrade``): the loop, the message format, the served table, the probes."""
+    return dict(_runtime_files())
+
+
+@functools.lru_cache(maxsize=1)
+def _runtime_files():
     here = Path(__file__).resolve().parent
     files = {"_hwgrade/__init__.py": '"""The grader\'s process side (a copy of hwtools/grade/runtime.py and what it imports)."""\n'}
     for name in RUNTIME_MODULES:
         files[f"_hwgrade/{name}.py"] = (here / f"{name}.py").read_text(encoding="utf-8")
-    return files
+    return tuple(files.items())
