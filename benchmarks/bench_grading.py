@@ -8,8 +8,10 @@ where no two students write the same code. The first grading of a Grader also co
 reference's answers (once per grader, reused for every later submission); it is timed apart.
 
 ``--baseline REF`` measures the grader of git revision REF (for example ``main``) side by side:
-each setting runs the baseline's grader (exported from git into a temporary folder, in a
-subprocess of the same Python) and then this kit's, and the table gives both and the ratio.
+for each setting, the baseline's grader (exported from git into a temporary folder) and this
+kit's each run in a subprocess of the same Python, both warmed up by a first grading, and then
+grade fresh submissions in turns (baseline, this kit, baseline, ...), so that a change of load
+on a shared machine weighs on both; the table gives both medians and their ratio.
 
 Numbers depend on the machine and on what else runs on it; the README gives the ones measured
 on the kit's 2-core machine, with the load at the time.
@@ -42,27 +44,6 @@ def fresh_submissions(blocks, layout, folder, count, tag):
     return kits
 
 
-def bench(kit, isolation, jobs, count, folder):
-    """(isolated, seconds of the first grading, [seconds of each later one]) with the grader of ``kit``."""
-    from hwtools.grade import Grader, blocks  # noqa: PLC0415 - the hwtools of the kit measured (PYTHONPATH)
-
-    grader = Grader(kit, isolation=isolation, jobs=jobs)
-    kits = fresh_submissions(blocks, blocks.load_layout(kit), folder, count + 1, f"{isolation}-{jobs}")
-    start = time.perf_counter()
-    first = grader.grade(kits[0])
-    setup = time.perf_counter() - start
-    assert first["total"]["auto_earned"] == 39, first["total"]
-    times = []
-    for submission in kits[1:]:
-        start = time.perf_counter()
-        result = grader.grade(submission)
-        times.append(time.perf_counter() - start)
-        assert result["total"]["auto_earned"] == 39, result["total"]
-    if hasattr(grader, "close"):
-        grader.close()
-    return grader.sandbox.isolated, setup, times
-
-
 def exported(ref, kit, folder):
     """The files of git revision ``ref`` of ``kit``, in ``folder`` (the course data is not needed)."""
     archive = Path(folder) / "baseline.tar"
@@ -72,26 +53,60 @@ def exported(ref, kit, folder):
     return Path(folder) / "baseline"
 
 
-def measure_elsewhere(kit, isolation, jobs, count):
-    """``bench`` of the kit at ``kit`` (its own hwtools first on the path), in a subprocess."""
-    env = dict(os.environ, PYTHONPATH=str(kit))
-    output = subprocess.run([sys.executable, __file__, "--one", str(kit), isolation, str(jobs), str(count)],
-                            env=env, cwd=kit, capture_output=True, text=True, check=True).stdout
-    return json.loads(output.strip().splitlines()[-1])
+class Side:
+    """A grader of the kit at ``kit`` (its own hwtools first on the path) in a subprocess, warmed
+    up; ``grade()`` grades one fresh submission there and returns the seconds it took."""
+
+    def __init__(self, kit, isolation, jobs):
+        env = dict(os.environ, PYTHONPATH=str(kit))
+        self.process = subprocess.Popen([sys.executable, __file__, "--serve", str(kit), isolation, str(jobs)], env=env,
+                                        cwd=kit, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.ready = json.loads(self.process.stdout.readline())
+
+    def grade(self):
+        self.process.stdin.write("grade\n")
+        self.process.stdin.flush()
+        return json.loads(self.process.stdout.readline())["seconds"]
+
+    def close(self):
+        self.process.stdin.close()
+        self.process.wait()
+
+
+def serve(kit, isolation, jobs):
+    """The subprocess of a Side: one warm-up grading, then one fresh submission per line on stdin."""
+    from hwtools.grade import Grader, blocks  # noqa: PLC0415 - the hwtools of the kit measured (PYTHONPATH)
+
+    grader, layout = Grader(kit, isolation=isolation, jobs=jobs), blocks.load_layout(kit)
+    if getattr(grader, "pool", None) is not None:
+        grader.pool.idle = 3600.0  # its reference servers stay up while the other side grades, as in a class graded back to back
+    with tempfile.TemporaryDirectory(prefix="bench-grading-") as folder:
+        number = 0
+        start = time.perf_counter()
+        result = grader.grade(fresh_submissions(blocks, layout, folder, 1, f"warm-{number}")[0])
+        assert result["total"]["auto_earned"] == 39, result["total"]
+        print(json.dumps({"isolated": grader.sandbox.isolated, "setup": time.perf_counter() - start}), flush=True)
+        for _ in sys.stdin:
+            number += 1
+            kit_dir = fresh_submissions(blocks, layout, folder, 1, f"next-{number}")[0]
+            start = time.perf_counter()
+            result = grader.grade(kit_dir)
+            seconds = time.perf_counter() - start
+            assert result["total"]["auto_earned"] == 39, result["total"]
+            print(json.dumps({"seconds": seconds}), flush=True)
+    if hasattr(grader, "close"):
+        grader.close()
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--submissions", type=int, default=3, help="timed submissions per setting (default 3)")
+    parser.add_argument("--submissions", type=int, default=5, help="timed submissions per setting (default 5)")
     parser.add_argument("--quick", action="store_true", help="one submission per setting")
     parser.add_argument("--baseline", metavar="REF", help="also measure the grader of this git revision, side by side")
-    parser.add_argument("--one", nargs=4, metavar=("KIT", "ISOLATION", "JOBS", "COUNT"), help=argparse.SUPPRESS)
+    parser.add_argument("--serve", nargs=3, metavar=("KIT", "ISOLATION", "JOBS"), help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.one:
-        kit, isolation, jobs, count = args.one
-        with tempfile.TemporaryDirectory(prefix="bench-grading-") as folder:
-            isolated, setup, times = bench(Path(kit), isolation, int(jobs), int(count), folder)
-        print(json.dumps({"isolated": isolated, "setup": setup, "times": times}))
+    if args.serve:
+        serve(Path(args.serve[0]), args.serve[1], int(args.serve[2]))
         return
     kit = Path(__file__).resolve().parents[1]
     count = 1 if args.quick else args.submissions
@@ -99,18 +114,23 @@ def main():
     print(f"{os.cpu_count()} CPU(s), load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (a shared machine is noisy)")
     with tempfile.TemporaryDirectory(prefix="bench-grading-") as folder:
         baseline = exported(args.baseline, kit, folder) if args.baseline else None
-        header = f"{'isolation':<10} {'jobs':>4}  {'first (+reference)':>18}  {'per submission':>16}  {'min':>6}  {'max':>6}"
+        header = f"{'isolation':<10} {'jobs':>4}  {'first (+reference)':>18}  {'median':>16}  {'min':>6}  {'max':>6}"
         print(header + (f"  {'baseline ' + args.baseline:>18}  {'ratio':>6}" if baseline else ""))
         for isolation, jobs in SETTINGS:
-            old = measure_elsewhere(baseline, isolation, jobs, count) if baseline else None
-            now = measure_elsewhere(kit, isolation, jobs, count)
-            name = "bwrap" if now["isolated"] else "none"
-            mean = statistics.mean(now["times"])
-            line = (f"{name:<10} {jobs:>4}  {now['setup']:>17.1f}s  {mean:>15.2f}s  {min(now['times']):>5.2f}s  "
-                    f"{max(now['times']):>5.2f}s")
-            if old:
-                old_mean = statistics.mean(old["times"])
-                line += f"  {old_mean:>17.2f}s  {mean / old_mean:>5.2f}x"
+            sides = [Side(kit, isolation, jobs)] + ([Side(baseline, isolation, jobs)] if baseline else [])
+            times = [[] for _ in sides]
+            for _ in range(count):
+                for side, kept in zip(sides[::-1], times[::-1]):  # the baseline first, then this kit
+                    kept.append(side.grade())
+            for side in sides:
+                side.close()
+            now = times[0]
+            name = "bwrap" if sides[0].ready["isolated"] else "none"
+            line = (f"{name:<10} {jobs:>4}  {sides[0].ready['setup']:>17.1f}s  {statistics.median(now):>15.2f}s  "
+                    f"{min(now):>5.2f}s  {max(now):>5.2f}s")
+            if baseline:
+                old = statistics.median(times[1])
+                line += f"  {old:>17.2f}s  {statistics.median(now) / old:>5.2f}x"
             print(line, flush=True)
 
 
