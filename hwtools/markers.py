@@ -100,8 +100,12 @@ def python_encoding(data, name="<file>"):
     (PEP 263), else UTF-8 (``utf-8-sig`` where there is a BOM)."""
     try:
         return tokenize.detect_encoding(io.BytesIO(data).readline)[0]
-    except SyntaxError as error:  # an unknown coding line, or a BOM beside another coding
-        raise MarkerError(f"{name}: {getattr(error, 'msg', None) or error}") from None
+    except SyntaxError as error:
+        message = str(error.msg if hasattr(error, "msg") else error)
+        if message.startswith("invalid or missing encoding declaration"):  # the first lines are not UTF-8
+            raise MarkerError(f"{name}: not UTF-8 text") from None
+        # "unknown encoding for NAME: CODEC", or a BOM beside another coding line
+        raise MarkerError(f"{name}: the coding line cannot be read ({message.replace('<file>', name)})") from None
 
 
 def decode_python(data, name="<file>"):

@@ -85,10 +85,10 @@ def is_instructor_only(name):
 
 
 def read_text(data, name):
-    """The text of a kit file's bytes with ``\\n`` line ends, whatever the checkout wrote (Git for
-    Windows writes ``\\r\\n``): Python files as Python reads them (``markers.decode_python``: the BOM
-    dropped; UTF-8 only), any other file as UTF-8. None for a file that is not text (NUL bytes,
-    not UTF-8): it is copied as it is."""
+    """The text of a kit file's bytes with ``\\n`` line ends and no BOM, whatever the checkout or the
+    editor wrote (Git for Windows writes ``\\r\\n``): Python files as Python reads them
+    (``markers.decode_python``; the kit's are UTF-8), any other file as UTF-8. None for a file that
+    is not text (NUL bytes, not UTF-8): it is copied as it is."""
     if name.endswith(".py"):
         try:
             encoding = markers.python_encoding(data, name)
@@ -102,7 +102,7 @@ def read_text(data, name):
     if b"\0" in data:
         return None
     try:
-        return markers.normalise_newlines(data.decode("utf-8"))
+        return markers.normalise_newlines(data.decode("utf-8").removeprefix("\ufeff"))
     except UnicodeDecodeError:
         return None
 

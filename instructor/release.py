@@ -35,10 +35,10 @@ edition
 
 The kit's files are those ``git ls-files --cached --others --exclude-standard`` lists (tracked
 plus untracked, without git-ignored ones); outside a git repository, a sorted walk that skips
-virtual environments, caches, build output and the course data. Every text file is written with
-``\n`` line ends (and Python files without a BOM), so a checkout with Windows line ends gives the
-same edition. Nothing is written until every file has been transformed, and the output depends
-only on the input (sorted, no timestamps), so two builds are byte-identical. A marker without its
+virtual environments, caches, build output and the course data. Every text file is written as
+UTF-8 with ``\n`` line ends and no BOM, so a checkout with Windows line ends gives the same
+edition. Nothing is written until every file has been transformed, and the output depends only
+on the input (sorted, no timestamps), so two builds are byte-identical. A marker without its
 pair, nested markers, mismatched ids or a block without a TODO id stop the build with
 ``file:line: message``.
 """
