@@ -527,3 +527,67 @@ def test_every_function_stub_of_this_kit_raises_todo_not_done(tmp_path):
                             env=dict(os.environ, PYTHONPATH=str(out), MPLBACKEND="Agg"))
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("raised") and "1.2.1" in result.stdout, result.stdout
+
+
+# --------------------------------------------------------------------------------------------
+# Dependencies point one way
+# --------------------------------------------------------------------------------------------
+
+ACYCLIC = ("instructor", "hwtools")  # hwlib joins when its own two cycles are gone (issue 16.2)
+
+
+def _imports(package_root):
+    """{module: the kit's modules it imports (at any depth of its code)} for the packages in ACYCLIC."""
+    modules = {}
+    for path in sorted(package_root.rglob("*.py")):
+        parts = path.relative_to(package_root).with_suffix("").parts
+        if parts[0] in ACYCLIC and "__pycache__" not in parts:
+            modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    graph = {}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join([*package.split(".")[:len(package.split(".")) - node.level + 1], *([base] if base else [])])
+                targets = [base] + [f"{base}.{alias.name}" for alias in node.names]
+            else:
+                continue
+            for target in targets:
+                while target and target not in modules:
+                    target = target.rpartition(".")[0]
+                if target and target != name and not name.startswith(target + "."):  # a package's own parents
+                    found.add(target)
+        graph[name] = found
+    return graph
+
+
+def _cycles(graph):
+    """The import cycles of ``graph``, each as the list of modules on it."""
+    cycles, state = [], {}
+
+    def visit(name, path):
+        state[name] = "open"
+        for target in sorted(graph[name]):
+            if state.get(target) == "open":
+                cycles.append(path[path.index(target):] + [target])
+            elif target not in state:
+                visit(target, [*path, target])
+        state[name] = "done"
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+    return cycles
+
+
+def test_the_release_tool_and_the_grader_have_no_import_cycles():
+    graph = _imports(REPO)
+    assert "instructor.kit" in graph["instructor.gradescope"] and "instructor.release" not in graph["instructor.gradescope"]
+    assert graph["hwtools.markers"] == set()  # the shared reader stands on nothing of the kit
+    assert _cycles(graph) == []
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == [["a", "b", "c", "a"]]  # the search does find one
