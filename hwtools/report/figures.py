@@ -44,14 +44,11 @@ def pdf_name(png_name):
 
 
 def save_figure(figure, out_dir, png_name):
-    """Write the figure as ``png_name`` and as its PDF (fonts embedded as TrueType, no date: the same bytes
-    every run); returns the two paths."""
-    import matplotlib
-
+    """Write the figure as ``png_name`` and as its PDF (text kept as text, no date: the same bytes every run);
+    returns the two paths."""
     png, pdf = Path(out_dir) / png_name, Path(out_dir) / pdf_name(png_name)
     figure.savefig(png, format="png", dpi=FIGURE_DPI)
-    with matplotlib.rc_context({"pdf.fonttype": 42}):
-        figure.savefig(pdf, format="pdf", metadata={"CreationDate": None})
+    figure.savefig(pdf, format="pdf", metadata={"CreationDate": None})
     return png, pdf
 
 

@@ -63,13 +63,15 @@ def _tex_all(value):
 
 
 def pandoc_available():
-    """Whether nbconvert finds a pandoc it can use (the 2.1.1 derivation is converted with it)."""
-    from nbconvert.utils.pandoc import PandocMissing, check_pandoc_version
+    """Whether nbconvert finds pandoc (the 2.1.1 derivation is converted with it; nbconvert itself warns if its
+    version is not one it knows, and goes on)."""
+    from nbconvert.utils.pandoc import PandocMissing, get_pandoc_version
 
     try:
-        return bool(check_pandoc_version())
+        get_pandoc_version()
     except PandocMissing:
         return False
+    return True
 
 
 def derivation_latex(markdown):
