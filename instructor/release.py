@@ -59,6 +59,7 @@ INSTRUCTOR_ONLY = (
     "instructor/",  # the release tool, hidden checks, wrong solutions: one folder
     "tests/test_release.py",
     "tests/test_grading.py",
+    "tests/test_checks.py",  # grades the wrong and natural solutions against the reference
     "tests/test_classroom.py",  # classes built from the wrong solutions and cheats, graded against the reference
     "tests/test_gradescope.py",
     "tests/test_student_edition.py",

@@ -586,9 +586,9 @@ def _sigmoid_entry(args, index):
 def make_sigmoid_values(rng, variant):
     """Rows of numbers from -1000 to 1000: 0 and +-1, moderate values, and far tails (where
     e^z overflows for z > 709 and e^-z for z < -709)."""
-    if variant == 0:
-        return {"z": np.concatenate([[0.0, 1.0, -1.0, 3.0, -3.0, 10.0, -10.0, 19.9, -19.9], FAR_Z])}
     z = np.concatenate([rng.uniform(-20, 20, size=8), rng.uniform(20, 1000, size=4) * rng.choice([-1.0, 1.0], size=4)])
+    if variant == 0:  # the landmarks first, then drawn values (so that no hidden input repeats a visible one)
+        return {"z": np.concatenate([[0.0, 1.0, -1.0, 3.0, -3.0, 10.0, -10.0, 19.9, -19.9], FAR_Z, z])}
     return {"z": rng.permutation(z)}
 
 
@@ -604,9 +604,10 @@ def make_sigmoid_shapes(rng, variant):
 
 def make_sigmoid_precision(rng, variant):
     """20 < |z| <= 50, where sigma is within 2.1e-9 of 0 or 1: sigma(-24.4) = 2.5e-11, not 0."""
-    if variant == 0:
-        return {"z": np.array([-24.4, 24.4, -20.5, 20.5, -30.0, 30.0, -37.0, 37.0, -50.0, 50.0])}
-    return {"z": rng.uniform(20, 50, size=10) * rng.choice([-1.0, 1.0], size=10)}
+    z = rng.uniform(20, 50, size=10) * rng.choice([-1.0, 1.0], size=10)
+    if variant == 0:  # the landmarks first, then drawn values
+        return {"z": np.concatenate([[-24.4, 24.4, -20.5, 20.5, -30.0, 30.0, -37.0, 37.0, -50.0, 50.0], z])}
+    return {"z": z}
 
 
 def make_predict_prob(rng, variant, zero_bias=False):
