@@ -587,8 +587,8 @@ def make_sigmoid_values(rng, variant):
     """Rows of numbers from -1000 to 1000: 0 and +-1, moderate values, and far tails (where
     e^z overflows for z > 709 and e^-z for z < -709)."""
     z = np.concatenate([rng.uniform(-20, 20, size=8), rng.uniform(20, 1000, size=4) * rng.choice([-1.0, 1.0], size=4)])
-    if variant == 0:  # the landmarks first, then drawn values (so that no hidden input repeats a visible one)
-        return {"z": np.concatenate([[0.0, 1.0, -1.0, 3.0, -3.0, 10.0, -10.0, 19.9, -19.9], FAR_Z, z])}
+    if variant == 0:  # the landmarks among drawn values (so that no hidden input repeats or reads as a visible one)
+        return {"z": rng.permutation(np.concatenate([[0.0, 1.0, -1.0, 3.0, -3.0, 10.0, -10.0, 19.9, -19.9], FAR_Z, z]))}
     return {"z": rng.permutation(z)}
 
 
@@ -605,8 +605,8 @@ def make_sigmoid_shapes(rng, variant):
 def make_sigmoid_precision(rng, variant):
     """20 < |z| <= 50, where sigma is within 2.1e-9 of 0 or 1: sigma(-24.4) = 2.5e-11, not 0."""
     z = rng.uniform(20, 50, size=10) * rng.choice([-1.0, 1.0], size=10)
-    if variant == 0:  # the landmarks first, then drawn values
-        return {"z": np.concatenate([[-24.4, 24.4, -20.5, 20.5, -30.0, 30.0, -37.0, 37.0, -50.0, 50.0], z])}
+    if variant == 0:  # the landmarks among drawn values
+        return {"z": rng.permutation(np.concatenate([[-24.4, 24.4, -20.5, 20.5, -30.0, 30.0, -37.0, 37.0, -50.0, 50.0], z]))}
     return {"z": z}
 
 
@@ -699,7 +699,7 @@ BEHAVIOURS = (
     Behaviour("1.1.1", "equation-1", 1.5, "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)): on "
               "random parameters and states, and on scores of exactly 0 (the tie: action 0, the < is strict) and "
               "just above and below 0, mixed in among them", "policy_choices", make_policy_states,
-              exact("actions", EXACTLY, _policy_row), visible_count=3, exact=True),
+              exact("actions", EXACTLY, _policy_row), exact=True),
     Behaviour("1.1.1", "env-action", 0.5, "the right actions, each one env.step takes: the int 0 or 1 (a Python bool "
               "or a numpy integer works too; a float or a numpy bool does not)", "policy_choices", make_policy_states,
               judge_env_actions, visible_count=1, exact=True),

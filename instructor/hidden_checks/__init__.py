@@ -17,7 +17,7 @@ HIDDEN_SEED = 0x6F3A_91C2_57D4_0B1E  # instructor-only; pick a new one per offer
 
 # Behaviours with more (or fewer) hidden inputs than visible ones.
 COUNTS = {
-    "1.1.1/equation-1": 3,
+    "1.1.1/equation-1": 2,  # and the ties chosen by hand below
     "1.2.1/equation-3": 3,
     "1.2.1/one-step": 3,
     "1.3.1/mean-reward": 3,
