@@ -28,14 +28,13 @@ import pytest
 from hwtools.grade import TODO_BY_ID, Grader, blocks, checks
 from hwtools.grade.classroom import todo_markdown
 from hwtools.grade.feedback import failure_words, render
-from test_grading import parse_wrong_solution
+from test_grading import full_points, parse_wrong_solution, points
 
 KIT = Path(__file__).resolve().parents[1]
 NATURAL = KIT / "tests" / "natural_solutions"
 WRONG = KIT / "instructor" / "wrong_solutions"
-TIME_LIMIT = 60.0
+TIME_LIMIT = 60.0  # per TODO's run: the preview runs the student's own code for the other TODOs too
 MOST_KEPT = 0.3  # what a wrong formula may keep of its TODO
-AUTO_TODOS = [todo.id for todo in TODO_BY_ID.values() if todo.auto]
 
 pytestmark = pytest.mark.timeout(1800)
 
@@ -248,14 +247,6 @@ def grader():
 @pytest.fixture(scope="module")
 def layout():
     return blocks.load_layout(KIT)
-
-
-def points(result):
-    return {entry["id"]: entry["auto_earned"] for entry in result["todos"] if entry["auto_possible"]}
-
-
-def full_points():
-    return {todo: TODO_BY_ID[todo].auto for todo in AUTO_TODOS}
 
 
 def is_crlf(path):
