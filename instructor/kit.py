@@ -20,6 +20,7 @@ INSTRUCTOR_ONLY = (
     "tests/test_release.py",
     "tests/test_markers.py",  # its copies of the kit are graded against the reference
     "tests/test_grading.py",
+    "tests/test_checks.py",  # grades the wrong and natural solutions against the reference
     "tests/test_classroom.py",  # classes built from the wrong solutions and cheats, graded against the reference
     "tests/test_gradescope.py",
     "tests/test_student_edition.py",

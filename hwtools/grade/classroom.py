@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
 from hwtools.grade import blocks
+from hwtools.grade.feedback import failure_words
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
 from hwtools.todos import AUTO_POINTS, TODOS
 
@@ -665,18 +666,11 @@ def todo_markdown(entry, visible_only=False):
         lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}, {_points(check['points'])} pt: "
                      f"{check['check']} ({inputs} input(s){where})")
     failure = entry["first_failure"]
-    if failure and failure["hidden"] and not visible_only:
-        lines.append("")
-        lines.append(f"First failing check: {failure['check']}, on a hidden input (hidden inputs are not "
-                     "shown; the visible ones of this check pass).")
-    elif failure and not failure["hidden"]:
-        lines.append("")
-        lines.append(f"First failing check: {failure['check']}")
-        for name in ("input", "expected", "actual"):
-            lines.append("")
-            lines.append(f"{name}:")
-            lines.append("")
-            lines.append(_fence(str(failure[name])))
+    if failure and (not failure["hidden"] or not visible_only):
+        headline, fields = failure_words(failure)  # the same words as every other report
+        lines += ["", headline]
+        for name, text in fields:
+            lines += ["", f"{name}:", "", _fence(text)]
     notes = entry["notes"]
     if visible_only and not any(check["failed_on"] == "visible" for check in entry["checks"]):
         notes = [note for note in notes if not note.startswith(STOPPED_NOTE)]  # it may have stopped on a hidden input
