@@ -8,7 +8,7 @@ the environment variable ``AUTOGRADER_ROOT``, else ``/autograder``; under it ``s
 instructor's kit (the reference and the hidden checks), ``submission/`` the student's files,
 ``results/results.json`` the output. ``AUTOGRADER_TIME_LIMIT`` sets the seconds per TODO's run.
 
-The submission is read as a class's submissions are (``classroom.open_submission``: a folder or a
+The submission is read as a class's submissions are (``submissions.open_submission``: a folder or a
 zip holding ``hwlib/``, at the top or a folder or two down, or the bare library files; links,
 unsafe paths and oversized files refused) and graded by the sandboxed ``Grader``.
 
@@ -49,17 +49,9 @@ import time
 from pathlib import Path
 
 from hwtools.grade import blocks
-from hwtools.grade.classroom import (
-    GRADED,
-    NOT_ISOLATED,
-    UNGRADED_HELP,
-    Unusable,
-    kit_file_names,
-    md_escape,
-    open_submission,
-    status_of,
-    todo_markdown,
-)
+from hwtools.grade.class_feedback import UNGRADED_HELP, md_escape, todo_markdown
+from hwtools.grade.gradebook import GRADED, NOT_ISOLATED, status_of
+from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.grade.feedback import render
 from hwtools.grade.grader import Grader, GradingError
 from hwtools.grade.sandbox import DEFAULT_TIME_LIMIT, limit_own_memory
