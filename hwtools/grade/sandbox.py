@@ -2,7 +2,7 @@
 
 Three ways to run it (``Sandbox.kind``), the strongest that works here chosen by ``isolation="auto"``:
 
-``bwrap`` (bubblewrap): the worker runs in new namespaces (``--unshare-all``: no network, its own
+``bwrap`` (bubblewrap, ``bwrap_sandbox.py``): the worker runs in new namespaces (``--unshare-all``: no network, its own
 processes, hostname and IPC), as an unprivileged user without capabilities, and sees only:
 
 * the operating system's ``/usr`` (and the ``/bin``, ``/lib`` links into it), read-only;
@@ -37,8 +37,6 @@ lines do), so that nothing a worker sends can take the trusted side down.
 
 from __future__ import annotations
 
-import functools
-import json
 import os
 import resource
 import select
@@ -53,6 +51,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hwtools.grade import worker as protocol
+from hwtools.grade.bwrap_sandbox import bwrap_options, options_pipe, probe_isolation, worker_env
 
 WORKER = Path(__file__).resolve().with_name("worker.py")
 GiB = 1024**3
@@ -61,7 +60,6 @@ DEFAULT_MEMORY_LIMIT = 1 * GiB  # address space per worker run
 GRADER_MEMORY_LIMIT = 4 * GiB  # address space of the trusted grader itself (command lines)
 WALL_FACTOR, WALL_SLACK = 3.0, 10.0  # the wall-clock backstop: WALL_FACTOR * CPU limit + WALL_SLACK
 MAX_FILE_BYTES = 64 * 1024**2  # any one file a run writes (its error stream included)
-TMPFS_BYTES = 64 * 1024**2
 STDERR_TAIL = 4000  # characters of the worker's error stream kept
 TOKEN_VARIABLE = "HWGRADE_SANDBOX"
 KINDS = ("auto", "bwrap", "user", "none")
@@ -96,107 +94,6 @@ def limit_own_memory(limit=GRADER_MEMORY_LIMIT):
         resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
         soft = limit
     return soft
-
-
-@functools.lru_cache(maxsize=None)
-def installed_kit(python):
-    """Where ``python`` would import ``hwlib`` from outside any kit folder, if it is a copy inside
-    its own installation (``pip install .`` without ``-e``): the sandbox could read that copy."""
-    code = ("import importlib.util, os, sys; sys.path = [p for p in sys.path if p and os.path.isdir(p) and "
-            "'site-packages' in p or p.startswith(sys.base_prefix)]; spec = importlib.util.find_spec('hwlib'); "
-            "print(os.path.realpath(spec.origin) if spec and spec.origin else '')")
-    try:
-        origin = subprocess.run([python, "-I", "-c", code], capture_output=True, text=True, timeout=60,
-                                cwd="/").stdout.strip()
-    except (OSError, subprocess.TimeoutExpired):
-        return ""
-    return origin if origin and any(origin.startswith(path + os.sep) for path in python_paths(python)) else ""
-
-
-@functools.lru_cache(maxsize=None)
-def python_paths(python):
-    """The folders a Python needs: its prefix (the venv), base prefix (the installation) and the
-    folder of the real executable."""
-    code = ("import sys, json, os; print(json.dumps([sys.prefix, sys.base_prefix, sys.exec_prefix, "
-            "sys.base_exec_prefix, os.path.dirname(os.path.realpath(sys.executable))]))")
-    output = subprocess.run([python, "-I", "-c", code], capture_output=True, text=True, check=True, timeout=60).stdout
-    return tuple(dict.fromkeys(os.path.realpath(path) for path in json.loads(output)))
-
-
-def _system_binds():
-    args = ["--ro-bind", "/usr", "/usr"]
-    for name in ("bin", "sbin", "lib", "lib32", "lib64", "libx32"):
-        path = Path("/") / name
-        if path.is_symlink():
-            args += ["--symlink", os.readlink(path), str(path)]
-        elif path.is_dir():
-            args += ["--ro-bind", str(path), str(path)]
-    return args
-
-
-def bwrap_options(python, kit_dir, worker=WORKER):
-    """bubblewrap's options (given to it through a pipe, not on its command line) that run a
-    Python on ``kit_dir`` with ``worker`` as ``/grader/worker.py``."""
-    args = ["--unshare-all", "--unshare-user", "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL",
-            "--die-with-parent", "--new-session", "--hostname", "sandbox"]
-    args += _system_binds()
-    # /tmp first: a Python installed under /tmp (a CI checkout there) is bound on top of it, not hidden by it
-    args += ["--proc", "/proc", "--dev", "/dev", "--size", str(TMPFS_BYTES), "--tmpfs", "/tmp", "--dir", "/tmp/home"]
-    for path in python_paths(python):
-        if not path.startswith("/usr/"):
-            args += ["--ro-bind", path, path]
-    args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(worker), "/grader/worker.py",
-             "--chdir", "/tmp", "--clearenv"]
-    for key, value in _worker_env("/tmp/home").items():
-        args += ["--setenv", key, value]
-    return args
-
-
-def _options_pipe(options):
-    """A pipe's read end holding bubblewrap's options, NUL-separated (``bwrap --args FD``)."""
-    data = b"".join(option.encode() + b"\0" for option in options)
-    read, write = os.pipe()
-    try:
-        if len(data) > 60_000:  # a pipe holds 64 KiB before the writer blocks
-            raise ValueError("bubblewrap's options do not fit in a pipe")
-        os.write(write, data)
-    finally:
-        os.close(write)
-    return read
-
-
-def _worker_env(home):
-    return {"PATH": "/usr/bin:/bin", "HOME": home, "TMPDIR": "/tmp" if home.startswith("/tmp/") else home,
-            "LANG": "C.UTF-8", "MPLBACKEND": "Agg", "PYTHONHASHSEED": "0", "PYTHONDONTWRITEBYTECODE": "1",
-            "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
-
-@functools.lru_cache(maxsize=None)
-def probe_isolation(python):
-    """(True, how) if bwrap can run ``python`` in new namespaces here, else (False, why not)."""
-    bwrap = shutil.which("bwrap")
-    if bwrap is None:
-        return False, "bubblewrap (bwrap) is not installed (Debian/Ubuntu: apt-get install bubblewrap)"
-    with tempfile.TemporaryDirectory(prefix="hwgrade-probe-") as kit:
-        fd = _options_pipe(bwrap_options(python, kit))
-        try:
-            result = subprocess.run([bwrap, "--args", str(fd), "--", os.path.abspath(python), "-c", "import numpy"],
-                                    capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL, env={},
-                                    pass_fds=(fd,))
-        except (OSError, subprocess.TimeoutExpired) as error:
-            return False, f"bwrap could not start: {error}"
-        finally:
-            os.close(fd)
-    if result.returncode != 0:
-        reason = " ".join(result.stderr.split())[:300]
-        return False, f"bwrap cannot create a sandbox here ({reason or 'exit code ' + str(result.returncode)})"
-    version = subprocess.run([bwrap, "--version"], capture_output=True, text=True, env={}).stdout.strip()
-    how = f"{version or 'bubblewrap'}: no network, read-only Python and kit, private /tmp, /proc and users"
-    copy = installed_kit(python)
-    if copy:
-        how += (f"; WARNING: {python} has a copy of hwlib installed at {os.path.dirname(copy)} (pip install "
-                "without -e), which the sandbox can read: reinstall with pip install -e .")
-    return True, how
 
 
 class Sandbox:
@@ -310,14 +207,14 @@ class WorkerProcess:
                 from hwtools.grade.user_sandbox import RunFolder  # noqa: PLC0415
 
                 self._run_folder = RunFolder(kit_dir, WORKER)
-                env, cwd = _worker_env(str(self._run_folder.home)), str(self._run_folder.home)
+                env, cwd = worker_env(str(self._run_folder.home)), str(self._run_folder.home)
             elif sandbox.kind == "none":
                 home = Path(self._scratch.name) / "home"
                 home.mkdir()
-                env = _worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
+                env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
             command, options = sandbox.command(kit_dir, time_limit, self._run_folder)
             if options is not None:
-                fds = (_options_pipe(options),)
+                fds = (options_pipe(options),)
                 command = [part.replace("{fd}", str(fds[0])) for part in command]
             self._stderr = open(Path(self._scratch.name) / "stderr", "w+b")  # noqa: SIM115 - closed in finish
             try:
