@@ -347,5 +347,6 @@ def test_students_read_their_status_without_the_sandbox_s_state():
     check_results(data)
     assert "Status: **timed out: 2.2.1**" in data["output"] and "isolated" not in data["output"]
     assert data["extra_data"] == {"status": "timed out: 2.2.1; not isolated", "isolated": False,
-                                  "isolation": "bwrap is missing"}
+                                  "isolation": "bwrap is missing", "sandbox": ""}
+    assert results_json(result, "graded", sandbox="user")["extra_data"]["sandbox"] == "user"
     assert results_json(result, "not isolated")["output"].startswith("Status: **graded**")
