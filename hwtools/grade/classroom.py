@@ -24,8 +24,10 @@ folder to grade everything again). The gradebook holds no time stamps: grading t
 twice writes the same bytes.
 
 Time limits: the grader runs each TODO of a submission as one sandboxed run, and ``--time-limit``
-bounds each run (wall clock and CPU). Code that never ends costs that limit once per TODO it hangs
-in; that TODO gets 0, the others keep their points, and the status says ``timed out: <TODOs>``.
+bounds each run's CPU time (a wall-clock backstop of 3x + 10 s ends code that only waits, so a
+busy machine slows runs without timing them out). Code that never ends costs that limit once per
+TODO it hangs in; that TODO gets 0, the others keep their points, and the status says
+``timed out: <TODOs>``.
 """
 
 from __future__ import annotations
