@@ -28,7 +28,7 @@ import time
 import zipfile
 from pathlib import Path
 
-from hwtools.grade import AUTO_POINTS, Grader, blocks, classroom, user_sandbox
+from hwtools.grade import AUTO_POINTS, Grader, blocks, classroom, submissions, user_sandbox
 
 KIT = Path(__file__).resolve().parents[1]
 
@@ -66,16 +66,48 @@ def bench(layout, workdir, count, jobs, isolation="auto", python=None):
     return grader.sandbox, first_seconds, seconds
 
 
+def lying_zip_reading(workdir, entries=600_000):
+    """(seconds, peak MiB) to reject a zip whose end record declares 1 entry while its central
+    directory holds ``entries``: the reader's own count, and zipfile's parse (what the reader did
+    before it counted the central directory itself)."""
+    import struct  # noqa: PLC0415
+    import tracemalloc  # noqa: PLC0415
+
+    path = Path(workdir) / "lying.zip"
+    records = [struct.pack("<4s6H3I5H2I", b"PK\x01\x02", 20, 20, 0, 0, 0, 0, 0, 0, 0, len(f"f{n}"), 0, 0, 0, 0, 0, 0)
+               + f"f{n}".encode() for n in range(entries)]
+    directory = b"".join(records)
+    path.write_bytes(directory + struct.pack("<4s4H2IH", b"PK\x05\x06", 0, 0, 1, 1, len(directory), 0, 0))
+    measured = {}
+    for name, read in (("reader", lambda: submissions._zip_entry_count(path, submissions.MAX_ENTRIES)),
+                       ("zipfile", lambda: len(zipfile.ZipFile(path).infolist()))):
+        started = time.perf_counter()
+        read()
+        seconds = time.perf_counter() - started
+        tracemalloc.start()  # the peak memory in a second pass (tracing slows the timing down)
+        read()
+        measured[name] = (seconds, tracemalloc.get_traced_memory()[1] / 2**20)
+        tracemalloc.stop()
+    return path.stat().st_size, measured
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--submissions", type=int, default=30, help="submissions in the class (default 30)")
     parser.add_argument("--jobs", type=int, nargs="+", default=[1, 2], help="settings of --jobs (default: 1 2)")
+    parser.add_argument("--zip-only", action="store_true", help="only the lying zip (600,000 entries declared as 1)")
     parser.add_argument("--isolation", nargs="+", default=["auto"], choices=["auto", "bwrap", "user", "none"],
                         help="sandboxes to compare (default: auto, the one the grader would pick)")
     args = parser.parse_args()
     if args.submissions < 1 or any(jobs < 1 for jobs in args.jobs):
         parser.error("--submissions and --jobs must be at least 1")
     layout = blocks.load_layout(KIT)
+    with tempfile.TemporaryDirectory(prefix="bench-zip-") as workdir:
+        size, measured = lying_zip_reading(workdir)
+        print(f"a {size / 1e6:.0f} MB zip of 600,000 entries declared as 1: " + "; ".join(
+            f"{name} {seconds:.2f} s, peak {peak:.0f} MiB" for name, (seconds, peak) in measured.items()))
+    if args.zip_only:
+        return
     load = os.getloadavg()
     print(f"{os.cpu_count()} CPU(s), load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
           "(a shared machine: the numbers are noisy)")

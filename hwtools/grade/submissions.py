@@ -112,7 +112,7 @@ def _zip_entry_count(path, limit):
                 chunk = handle.read(min(1 << 20, left))
                 left -= len(chunk)
                 buffer, at = buffer[at:] + chunk, 0
-            if len(buffer) - at < CENTRAL_RECORD_BYTES or buffer[at:at + 4] != CENTRAL_RECORD:
+            if len(buffer) - at < CENTRAL_RECORD_BYTES or not buffer.startswith(CENTRAL_RECORD, at):
                 return count
             names, extra, comment = struct.unpack_from("<HHH", buffer, at + 28)
             count += 1
