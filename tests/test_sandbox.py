@@ -16,6 +16,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
@@ -376,6 +377,23 @@ def test_where_bubblewrap_fails_as_in_docker_the_user_sandbox_takes_over(user_py
         assert "Creating new namespace failed: Operation not permitted" in box.how
     finally:
         sandbox.probe_isolation.cache_clear()
+
+
+def test_killing_the_sandbox_users_spares_a_run_that_another_grader_holds(user, tmp_path):
+    held = user.start(make_kit(tmp_path, "values = np.array([3.0])"))  # as another grader's run would
+    try:
+        uid = held._run_folder.uid
+        free = next(entry for entry in user_sandbox.users() if entry.pw_uid != uid)
+        stray = subprocess.Popen(["setpriv", f"--reuid={free.pw_uid}", f"--regid={free.pw_gid}", "--clear-groups", "--",
+                                  "sleep", "2999.75"])
+        while not user_sandbox.processes_of(free.pw_uid) and stray.poll() is None:
+            time.sleep(0.05)
+        assert user_sandbox.kill_all_users()
+        assert stray.wait(timeout=30) == -9, "a free user's process survived"
+        assert held.process.poll() is None and user_sandbox.processes_of(uid), "a held run was killed in its middle"
+    finally:
+        held.finish(graceful=False)
+    assert not user_sandbox.processes_of(uid)
 
 
 def test_the_grader_can_put_itself_under_a_memory_limit():

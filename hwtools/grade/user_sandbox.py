@@ -86,28 +86,35 @@ def _lock_dir():
     return LOCK_DIR
 
 
+def _take(entry):
+    """The lock file of pool user ``entry``, locked for this caller, or None if a run holds it."""
+    with _THREAD_LOCK:
+        if entry.pw_name in _HELD:
+            return None
+        handle = open(_lock_dir() / f"{entry.pw_name}.lock", "w")  # noqa: SIM115 - held until released
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            handle.close()
+            return None
+        _HELD.add(entry.pw_name)
+        return handle
+
+
 class _Slot:
     """One pool user held by one run: a thread lock in this process and a file lock across processes."""
 
-    def __init__(self, wait=600.0):
-        pool = users()
+    def __init__(self, wait=600.0, user=None):
+        pool = [user] if user is not None else users()
         if not pool:
             raise RuntimeError("no sandbox users: create them as root with python -m hwtools.grade.user_sandbox create")
         give_up = time.monotonic() + wait
         while True:
             for entry in pool:
-                with _THREAD_LOCK:
-                    if entry.pw_name in _HELD:
-                        continue
-                    handle = open(_lock_dir() / f"{entry.pw_name}.lock", "w")  # noqa: SIM115 - held until release
-                    try:
-                        fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-                    except BlockingIOError:
-                        handle.close()
-                        continue
-                    _HELD.add(entry.pw_name)
-                self.user, self._handle = entry, handle
-                return
+                handle = _take(entry)
+                if handle is not None:
+                    self.user, self._handle = entry, handle
+                    return
             if time.monotonic() > give_up:
                 raise TimeoutError("every sandbox user stayed busy")
             time.sleep(0.05)
@@ -163,8 +170,22 @@ def kill_user(uid, gid, rounds=50):
 
 
 def kill_all_users():
-    """Kill every process of every pool user (before results are written); True when none is left."""
-    return all([kill_user(entry.pw_uid, entry.pw_gid) for entry in users()])
+    """Kill every process of every pool user that no run holds (before results are written); True
+    when none is left. Each user is taken first, as a run takes it: one that another grader on the
+    same machine holds is that grader's to clean up (its run kills them when it ends), never killed
+    in its middle. (On Gradescope one grader has the container: every user is free by then.)"""
+    done = True
+    for entry in users():
+        handle = _take(entry)
+        if handle is None:
+            continue
+        try:
+            done = kill_user(entry.pw_uid, entry.pw_gid) and done
+        finally:
+            with _THREAD_LOCK:
+                _HELD.discard(entry.pw_name)
+                handle.close()
+    return done
 
 
 def _own(path, uid, gid, mode):
