@@ -32,6 +32,8 @@ import sys
 import zipfile
 from pathlib import Path
 
+from instructor.kit import kit_files
+
 BUNDLED = ("hwlib/", "hwtools/", "instructor/hidden_checks/")  # path prefixes of the kit in the bundle
 LEFT_OUT = ("hwtools/grade/answer_key.json",)  # the student edition's key: the bundle grades with the reference
 GRADING_REQUIREMENTS = ("numpy", "gymnasium")  # what hwlib imports when the grader's worker loads it
@@ -113,7 +115,6 @@ def bundle_files(source):
     """{name in the zip: (bytes, executable)} of the bundle for the instructor's kit at ``source``."""
     from hwtools.grade.grader import HIDDEN_CHECKS, has_solutions  # noqa: PLC0415 - numpy only when building
     from hwtools.grade.gradescope import BUNDLE_MARKER  # noqa: PLC0415
-    from instructor.release import kit_files  # noqa: PLC0415
 
     source = Path(source).resolve()
     if not has_solutions(source):
