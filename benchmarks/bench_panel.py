@@ -94,7 +94,7 @@ def bench_burst(num_changes):
     def clicks():
         start.wait()
         for index in range(num_changes):
-            panel.preset_buttons[index % 2].click()
+            panel.apply_preset(list(PRESETS)[index % 2])
 
     def moves():
         start.wait()
