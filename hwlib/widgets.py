@@ -440,7 +440,8 @@ class SliderPanel:
             style={"description_width": "3em"}, layout=widgets.Layout(width="13em"),
         )
         self.reward_label = widgets.HTML(
-            tooltip=REWARD_TOOLTIP, layout=widgets.Layout(width="100%", height=f"{1.4 * STATUS_LINES + 0.4:.1f}em", overflow="hidden"),
+            tooltip=REWARD_TOOLTIP,
+            layout=widgets.Layout(width="auto", align_self="stretch", height=f"{1.4 * STATUS_LINES + 0.4:.1f}em", overflow="hidden"),
         )
         self.reward_label.add_class("hwlib-reward")
         self.reward_label.add_class("hwlib-status")
@@ -606,7 +607,10 @@ class SliderPanel:
             self._show_error(error, lines)
             return
         self.not_done = None
-        if self.step_slider.value != step:
+        # The time step slider shows the step drawn when the panel chose it (a new episode's end, or the
+        # end of one shorter than the step asked for). A step the browser asked for is its own value
+        # already: writing it back late would pull ▶ Play back to a step it has passed.
+        if (state.step is None or state.step != step) and self.step_slider.value != step:
             self._writing.active = True
             try:
                 self.step_slider.value = step
