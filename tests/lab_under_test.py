@@ -237,6 +237,7 @@ OPEN_TIMEOUT_MS = 60_000  # JupyterLab loaded, notebook shown, kernel idle
 RUN_TIMEOUT_S = 480  # all cells of one notebook run (p1 takes ~25 s on a quiet 2-core machine, minutes when 8 jobs share it)
 CELL_TIMEOUT_S = 300  # one cell running this long with no other cell finishing: the run has hung
 CLEAR_TIMEOUT_MS = 30_000
+STOPPED_S = 3  # no cell queued or running for this long: the Run All has ended
 
 # How JupyterLab 4 shows an exception: not as an "application/vnd.jupyter.error" output (it never
 # renders that mime type) but as a stderr output holding the traceback, or the short message of an
@@ -341,8 +342,9 @@ def error_outputs(page):
 
 def run_all_cells(page, timeout_s=RUN_TIMEOUT_S, cell_timeout_s=CELL_TIMEOUT_S):
     """Clear every output, then Run > Run All Cells, and wait until every code cell has run or a cell
-    failed (JupyterLab stops a Run All there). Returns {"prompts", "errors"} (errors: the count of error
-    outputs). Fails at once if no cell finished for ``cell_timeout_s`` or the run took ``timeout_s``."""
+    failed (JupyterLab stops a Run All there: no cell is queued any more). Returns {"prompts", "errors"}
+    (errors: the count of error outputs). Fails if no cell finished for ``cell_timeout_s`` or the run
+    took ``timeout_s``."""
     menu(page, "Edit", "Clear Outputs of All Cells")
     page.wait_for_function(
         "() => document.querySelectorAll('.jp-NotebookPanel:not(.lm-mod-hidden) .jp-OutputArea-output').length === 0",
@@ -350,7 +352,7 @@ def run_all_cells(page, timeout_s=RUN_TIMEOUT_S, cell_timeout_s=CELL_TIMEOUT_S):
     )
     menu(page, "Run", "Run All Cells")
     started = last_change = time.monotonic()
-    last_prompts = None
+    last_prompts, stopped_since = None, None
     while True:
         state = page.evaluate(CELL_STATE_JS)
         pending = any(prompt == "[*]:" for prompt in state["prompts"])
@@ -358,6 +360,11 @@ def run_all_cells(page, timeout_s=RUN_TIMEOUT_S, cell_timeout_s=CELL_TIMEOUT_S):
         if not pending and (all_ran or state["errors"] > 0):
             break
         now = time.monotonic()
+        # A Run All queues every cell ([*]) at once: none queued any more means the run has stopped,
+        # at an error even if no output shows one (the caller sees the cells that did not run).
+        stopped_since = (stopped_since or now) if not pending and state["prompts"] else None
+        if stopped_since is not None and now - stopped_since > STOPPED_S:
+            break
         if state["prompts"] != last_prompts:
             last_prompts, last_change = state["prompts"], now
         running = [index for index, prompt in enumerate(state["prompts"]) if prompt == "[*]:"][:1]

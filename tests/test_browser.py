@@ -299,7 +299,8 @@ SETTLED_JS = """([element, labels, expected, settledMs]) => {
     const idle = [...document.querySelectorAll('#jp-main-statusbar .jp-StatusBar-TextItem')]
         .some(item => item.textContent.trim().endsWith('| Idle'));
     const controls = element.querySelector('.hwlib-panel-controls');
-    const drawn = !controls || (controls.dataset.sent ?? '0') === (controls.dataset.drawn ?? '0');
+    const drawn = controls !== null && controls.dataset.drawn !== undefined
+        && (controls.dataset.sent ?? controls.dataset.drawn) === controls.dataset.drawn;
     const settled = idle && drawn && readouts.every((value, i) => Math.abs(value - expected[i]) < 1e-9);
     const now = performance.now();
     if (!settled) { window.hwlibSettledSince = null; return false; }
