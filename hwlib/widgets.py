@@ -28,8 +28,11 @@ panel falls back to drawing the controls' values.
 Redraws never overlap and never go stale: a change that arrives while a frame is being drawn
 (from another thread) is only noted, and the drawing thread draws once more, with the latest
 state, before it stops. A new episode costs about 60 ms (play it, draw its curves); a new time
-step only redraws the cursor and the cart (about 10 ms, ``EpisodeView.frame_png``), so ▶ Play
-keeps up with its 20 frames per second.
+step only redraws the cursor and the cart (about 10 ms, ``EpisodeView.frame_png``). While ▶ Play
+runs, the browser draws the steps itself: the kernel sends the episode's picture without the
+moving parts and where they go at every step (``EpisodeView.overlay``) once, and the browser draws
+the cursor and the cart over it, 20 frames per second whatever the kernel is doing; when the play
+stops, the kernel's own frame of that step replaces it.
 
 **The layout never moves.** Every part has a fixed size: the status line (reward and why the
 episode ended, or what went wrong) has room for two lines and clips the rest (its tooltip holds
@@ -267,7 +270,7 @@ function button(label, tooltip) {
 async function render({ model, el }) {
   const manager = model.widget_manager;
   const controls = await Promise.all(model.get("controls").map((ref) => manager.get_model(modelId(ref))));
-  const params = controls.slice(0, 4), seed = controls[4], step = controls[5];
+  const params = controls.slice(0, 4), seed = controls[4], step = controls[5], play = controls[6];
   // The panel's state as the browser has it: what the student did last is what it holds.
   const local = { params: params.map((m) => m.get("value")), seed: seed.get("value"), step: null };
   let seq = model.get("drawn");
@@ -297,8 +300,16 @@ async function render({ model, el }) {
   listen(step, () => {
     if (fromKernel(step)) return;  // the kernel showing a new episode's end, or an echo
     local.step = step.get("value");
+    if (play.get("playing") && overlay.draw(local)) return;  // ▶ plays in the browser: no frame from the kernel
     send();
   });
+  const onPlaying = () => {
+    if (!play.get("playing") && overlay.shown) {
+      overlay.until = seq + 1;  // the kernel's own frame of the step where the play stopped replaces the overlay
+      send();
+    }
+  };
+  play.on("change:playing", onPlaying);
 
   const presets = document.createElement("div");
   presets.className = "hwlib-presets";
@@ -330,7 +341,11 @@ async function render({ model, el }) {
     landscape.title = model.get("landscape_tooltip");
   };
   showLandscape();
-  const showDrawn = () => { el.dataset.drawn = String(model.get("drawn")); };
+  const overlay = playOverlay(model, el);
+  const showDrawn = () => {
+    el.dataset.drawn = String(model.get("drawn"));
+    if (overlay.until !== null && model.get("drawn") >= overlay.until) overlay.hide();
+  };
   showDrawn();
   model.on("change:landscape_enabled", showLandscape);
   model.on("change:landscape_tooltip", showLandscape);
@@ -340,13 +355,101 @@ async function render({ model, el }) {
   model.send({ event: "connected" });
   return () => {
     for (const [control, handler] of listeners) control.off("change:value", handler);
+    play.off("change:playing", onPlaying);
+    overlay.hide();
   };
+}
+
+// While ▶ plays, the browser draws the time cursors and the cart over the episode's picture
+// without them (both from the kernel, once per episode): the kernel draws no frame per step, so
+// the play keeps its pace whatever the kernel is doing. When it stops, the kernel's frame returns.
+function playOverlay(model, el) {
+  const state = { shown: false, until: null, canvas: null, image: null, bitmap: null, data: null };
+  const load = async () => {
+    const data = model.get("overlay");
+    state.data = null;
+    state.bitmap = null;
+    const png = model.get("overlay_png");
+    if (!data || !png || !png.byteLength) return;
+    state.bitmap = await createImageBitmap(new Blob([png], { type: "image/png" }));
+    state.data = data;
+  };
+  model.on("change:overlay_png", load);
+  load();
+  const place = () => {
+    const panel = el.closest(".hwlib-slider-panel");
+    const image = panel && panel.querySelector("img.hwlib-episode");
+    if (!image) return false;
+    if (!state.canvas || state.image !== image) {
+      state.canvas?.remove();
+      state.canvas = document.createElement("canvas");
+      state.canvas.className = "hwlib-play-overlay";
+      image.insertAdjacentElement("afterend", state.canvas);
+      state.image = image;
+    }
+    const canvas = state.canvas;
+    canvas.width = image.naturalWidth || image.width;
+    canvas.height = image.naturalHeight || image.height;
+    canvas.style.left = image.offsetLeft + "px";
+    canvas.style.top = image.offsetTop + "px";
+    return true;
+  };
+  state.draw = (local) => {
+    const data = state.data;
+    if (!data || !state.bitmap || data.seed !== local.seed || data.params.some((value, i) => value !== local.params[i])) return false;
+    if (local.step === null || local.step > data.num_steps || !place()) return false;
+    const k = local.step, ctx = state.canvas.getContext("2d");
+    ctx.drawImage(state.bitmap, 0, 0);
+    ctx.strokeStyle = data.cursor.color;
+    ctx.lineWidth = data.cursor.width;
+    for (const cursor of data.cursors) {
+      ctx.beginPath();
+      ctx.moveTo(cursor.x[k], cursor.top);
+      ctx.lineTo(cursor.x[k], cursor.bottom);
+      ctx.stroke();
+    }
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(data.clip.left, data.clip.top, data.clip.width, data.clip.height);
+    ctx.clip();
+    ctx.fillStyle = data.cart.color;
+    ctx.fillRect(data.cart.left[k], data.cart.top, data.cart.width, data.cart.height);
+    ctx.strokeStyle = data.pole.color;
+    ctx.lineWidth = data.pole.width;
+    ctx.lineCap = "round";
+    ctx.beginPath();
+    ctx.moveTo(data.pole.x0[k], data.pole.y0);
+    ctx.lineTo(data.pole.x1[k], data.pole.y1[k]);
+    ctx.stroke();
+    ctx.fillStyle = data.axle.color;
+    ctx.beginPath();
+    ctx.arc(data.pole.x0[k], data.pole.y0, data.axle.radius, 0, 2 * Math.PI);
+    ctx.fill();
+    ctx.restore();
+    ctx.fillStyle = data.caption.color;
+    ctx.font = `${data.caption.size}px "DejaVu Sans", sans-serif`;
+    ctx.textAlign = "center";
+    ctx.fillText(`step ${k} of ${data.num_steps}` + (k === data.num_steps ? `: ${data.ending}` : ""), data.caption.x, data.caption.y);
+    state.canvas.style.display = "block";
+    state.shown = true;
+    state.until = null;
+    el.dataset.frames = String(Number(el.dataset.frames || 0) + 1);
+    return true;
+  };
+  state.hide = () => {
+    if (state.canvas) state.canvas.style.display = "none";
+    state.shown = false;
+    state.until = null;
+  };
+  return state;
 }
 
 export default { render };
 """
 
 PANEL_CSS = f"""
+.hwlib-slider-panel {{ position: relative; }}
+.hwlib-play-overlay {{ position: absolute; display: none; pointer-events: none; }}
 .hwlib-panel-controls {{ display: flex; flex-direction: column; gap: 4px; }}
 .hwlib-presets {{ display: flex; gap: 4px; }}
 .hwlib-panel-controls .widget-button {{ width: auto; margin: 0; }}
@@ -360,8 +463,9 @@ PANEL_CSS = f"""
 class PanelControls(anywidget.AnyWidget):
     """The panel's front-end part: the preset and landscape buttons, and the state as the browser has it.
 
-    ``controls``: the four θ sliders, the seed box and the time step slider (their browser models
-    are followed). ``state`` (browser → kernel): ``{"seq", "params", "seed", "step"}`` after each
+    ``controls``: the four θ sliders, the seed box, the time step slider and the Play (their browser
+    models are followed). ``overlay`` and ``overlay_png``: what the browser draws ▶ Play with (see
+    ``EpisodeView.overlay``), for the ``params`` and ``seed`` they name. ``state`` (browser → kernel): ``{"seq", "params", "seed", "step"}`` after each
     action, ``step`` None for "the end of the episode". ``drawn``: the ``seq`` of the last state the
     kernel has drawn (the browser shows it as ``data-drawn``, and the state it sent as ``data-sent``).
     """
@@ -375,6 +479,8 @@ class PanelControls(anywidget.AnyWidget):
     landscape_enabled = traitlets.Bool(False).tag(sync=True)
     state = traitlets.Any(None).tag(sync=True, echo_update=False)  # checked by parse_frontend_state
     drawn = traitlets.Int(0).tag(sync=True)
+    overlay = traitlets.Dict(allow_none=True, default_value=None).tag(sync=True)
+    overlay_png = traitlets.Bytes(b"").tag(sync=True)
 
 
 @dataclass(frozen=True)
@@ -425,6 +531,7 @@ class SliderPanel:
         self._state_lock = threading.Lock()
         self._state = PanelState(tuple(params), seed)
         self._frontend = False  # True once the browser's part speaks: it then sends the state
+        self._overlay_key = None  # the (params, seed) whose overlay the browser has for ▶ Play
 
         self.param_sliders = [
             widgets.FloatSlider(
@@ -453,7 +560,7 @@ class SliderPanel:
         self.play = widgets.Play(value=0, min=0, max=0, interval=PLAY_INTERVAL_MS, tooltip=PLAY_TOOLTIP, show_repeat=False)
         self.play_link = widgets.jslink((self.play, "value"), (self.step_slider, "value"))  # runs in the browser
         self.controls = PanelControls(
-            controls=[*self.param_sliders, self.seed_box, self.step_slider],
+            controls=[*self.param_sliders, self.seed_box, self.step_slider, self.play],
             presets=[{"name": name, "params": list(values), "tooltip": PRESET_TOOLTIPS[name]} for name, values in PRESETS.items()],
         )
         # No tooltip on the image: ipywidgets 8's Image view fails to render with one. Its size is
@@ -483,6 +590,7 @@ class SliderPanel:
         for control in [*self.param_sliders, self.seed_box, self.step_slider]:
             control.observe(self._on_control_change, names="value")
         self.controls.observe(self._on_frontend_state, names="state")
+        self.play.observe(lambda _change: self._redraws.request(), names="playing")
         self.controls.on_msg(self._on_frontend_message)
 
     def _repr_mimebundle_(self, **kwargs):
@@ -619,6 +727,12 @@ class SliderPanel:
         self.reward_label.value = f"<b>{html.escape(frame.reward_text)}</b>"
         self.reward_label.tooltip = REWARD_TOOLTIP
         self.image.value = frame.png
+        if self.play.playing and self._overlay_key != (params, seed):
+            # ▶ plays: the browser draws the steps over the episode's picture, with this
+            data = self.view.overlay(self.episode)
+            self.controls.overlay = {**data, "params": list(params), "seed": seed}
+            self.controls.overlay_png = self.view.background_png(self.episode)
+            self._overlay_key = (params, seed)
         self.controls.drawn = max(self.controls.drawn, state.seq)
 
     def _show_error(self, error, todo_lines):

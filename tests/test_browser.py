@@ -720,32 +720,38 @@ def check_play(panel, layout):
             const readout = [...element.querySelectorAll('.widget-hslider')]
                 .find(s => s.querySelector('label.widget-label')?.textContent === 'time step').querySelector('.widget-readout');
             window.hwlibSteps = [];
-            window.hwlibImages = [];
+            window.hwlibPictures = [];  // the kernel's frames and the browser's overlay frames, as shown
             new MutationObserver(() => window.hwlibSteps.push(readout.textContent.trim()))
                 .observe(readout, {childList: true, characterData: true, subtree: true});
-            new MutationObserver(() => window.hwlibImages.push(performance.now()))
-                .observe(element.querySelector('img.hwlib-episode'), {attributes: true, attributeFilter: ['src']});
+            const picture = () => window.hwlibPictures.push(performance.now());
+            new MutationObserver(picture).observe(element.querySelector('img.hwlib-episode'), {attributes: true, attributeFilter: ['src']});
+            new MutationObserver(picture).observe(element.querySelector('.hwlib-panel-controls'), {attributes: true, attributeFilter: ['data-frames']});
         }"""
     )
+    frames_before = int(panel.locator(".hwlib-panel-controls").get_attribute("data-frames") or 0)
     panel.locator(".widget-play button").first.click()
+    check_overlay(panel, params, end)
     panel.page.wait_for_function(
         f"() => window.hwlibSteps.length > 5 && window.hwlibSteps[window.hwlibSteps.length - 1] === '{end}'",
         timeout=PLAY_TIMEOUT_MS,
     )
     steps = [int(parse_number(text)) for text in panel.page.evaluate("window.hwlibSteps")]
-    images = panel.page.evaluate("window.hwlibImages")
+    pictures = panel.page.evaluate("window.hwlibPictures")
+    overlay_frames = int(panel.locator(".hwlib-panel-controls").get_attribute("data-frames") or 0) - frames_before
     playing = [step for step in steps if step < end]
     assert playing and playing[0] <= 2, f"play should start the episode over from step 0: {steps}"
     assert len(set(playing)) >= 10 and playing == sorted(playing), f"the time step should advance while playing: {steps}"
-    assert len(images) >= 3, "the figure should follow the time step while playing"
-    seconds = (images[-1] - images[0]) / 1000
-    report = (f"▶ Play in Chromium: {len(images)} images for {end} time steps in {seconds:.1f} s, "
-              f"{(len(images) - 1) / seconds:.1f} frames per second")
+    assert len(pictures) >= 3, "the figure should follow the time step while playing"
+    assert overlay_frames >= 10, f"the browser should draw the steps while playing ({overlay_frames} frames drawn)"
+    seconds = (pictures[-1] - pictures[0]) / 1000
+    report = (f"▶ Play in Chromium: {len(pictures)} pictures ({overlay_frames} drawn in the browser) for {end} time steps "
+              f"in {seconds:.1f} s, {(len(pictures) - 1) / seconds:.1f} frames per second")
     print(report)
     ARTIFACTS.mkdir(exist_ok=True)
     (ARTIFACTS / "panel_play.txt").write_text(report + "\n")
     expect(readout).to_have_text(str(end))
     check_panel_shows(panel, params, "after playing the episode", step=end)
+    expect(panel.locator(".hwlib-play-overlay")).to_be_hidden(timeout=WIDGET_TIMEOUT_MS)  # the kernel's exact frame shows again
     layout.check("after playing")
     save_screenshot(panel, "p1_slider_panel_played.png")
 
@@ -756,6 +762,36 @@ def check_play(panel, layout):
     panel.page.wait_for_function("() => new Set(window.hwlibSteps).size > 3", timeout=PLAY_TIMEOUT_MS)
     click_presets(panel, ["always right", "always left", "always right"])
     check_panel_shows(panel, PRESETS["always right"], "after clicking presets while the episode played")
+    expect(panel.locator(".hwlib-play-overlay")).to_be_hidden(timeout=WIDGET_TIMEOUT_MS)
+
+
+OVERLAY_JS = """(element) => {
+    const canvas = element.querySelector('.hwlib-play-overlay');
+    if (!canvas || canvas.style.display !== 'block') return null;
+    const step = [...element.querySelectorAll('.widget-hslider')]
+        .find(s => s.querySelector('label.widget-label')?.textContent === 'time step').querySelector('.widget-readout').textContent;
+    return [canvas.toDataURL('image/png'), step.trim()];
+}"""
+
+
+def check_overlay(panel, params, end):
+    """While ▶ plays, the browser's picture of a step is the kernel's figure of that step (but for
+    the anti-aliasing of the lines and the caption's letters), not that of another step."""
+    import matplotlib.image
+
+    panel.page.wait_for_function(f"element => ({OVERLAY_JS})(element) !== null", arg=panel.element_handle(), timeout=PLAY_TIMEOUT_MS)
+    png, step = panel.evaluate(OVERLAY_JS)
+    step = int(parse_number(step))
+    shown = matplotlib.image.imread(io.BytesIO(base64.b64decode(png.split(",", 1)[1])))
+
+    def differing(at):
+        expected = expected_pixels(params, at)
+        return float(np.mean(np.abs(shown - expected).max(axis=2) > 0.1)) if shown.shape == expected.shape else 1.0
+
+    here, elsewhere = differing(step), min(differing(other) for other in (step - 10, step + 10) if 0 <= other <= end)
+    assert here < 0.01 and here < elsewhere, (
+        f"the browser's picture of step {step} while playing differs from the figure of that step in {here:.2%} "
+        f"of its pixels (from a step 10 away: {elsewhere:.2%})")
 
 
 # Cells run after the notebook, to make the student's policy fail as it would on day one (a TODO not

@@ -141,3 +141,25 @@ def test_message_png_is_an_opaque_picture_of_the_given_size():
     assert pixels.shape == (352, 720, 4) and np.all(pixels[..., 3] == 1.0) and np.any(pixels[..., :3] < 0.5)
     with pytest.raises(TypeError, match="lines must be a list of strings"):
         message_png("one string", (9.0, 4.4), 80)
+
+
+def test_the_overlay_puts_the_moving_parts_where_frame_png_draws_them():
+    """The browser draws ▶ Play from ``overlay`` over ``background_png``: at every step its cursors and
+    its cart lie where the kernel's frame has them, over the picture without them."""
+    episode = play_episode(CartPoleLinearPolicy((0.0, 0.0, 0.0, -0.2)), seed=0)
+    view = EpisodeView()
+    overlay = view.overlay(episode)
+    background = matplotlib.image.imread(io.BytesIO(view.background_png(episode)))
+    assert overlay["num_steps"] == episode.num_steps == 142 and overlay["ending"] == "the cart ran off the track past ±2.4 m"
+    for step in (0, 60, 142):
+        frame = matplotlib.image.imread(io.BytesIO(view.frame_png(episode, step)))
+        for cursor in overlay["cursors"]:
+            x, y = int(round(cursor["x"][step])), int((cursor["top"] + cursor["bottom"]) / 2) + 7
+            assert np.allclose(frame[y, x, :3], 0.5, atol=0.02), f"no cursor at step {step}, x = {x}"
+            assert not np.allclose(background[y, x, :3], 0.5, atol=0.02), "the background has no cursor"
+        cart = overlay["cart"]
+        x, y = int(cart["left"][step] + cart["width"] / 2), int(cart["top"] + cart["height"] / 2)
+        assert np.allclose(frame[y, x, :3], 0.25, atol=0.01), f"no cart at step {step}"
+        assert np.allclose(background[y, x, :3], 1.0), "the background has no cart"
+        tip = int(overlay["pole"]["x1"][step]), int(overlay["pole"]["y1"][step]) + 3
+        assert frame[tip[1], tip[0], 0] > 0.9 and frame[tip[1], tip[0], 2] < 0.3, f"no orange pole tip at step {step}"

@@ -11,6 +11,7 @@ import numbers
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import to_hex
 from matplotlib.patches import Circle, Rectangle
 from matplotlib.ticker import MaxNLocator
 from PIL import Image
@@ -184,6 +185,54 @@ class EpisodeView:
         Image.fromarray(pixels, "RGBA").save(buffer, format="png", compress_level=PNG_COMPRESS_LEVEL)
         return buffer.getvalue()
 
+    def overlay(self, episode):
+        """Where ``frame_png`` draws the moving parts at every step of ``episode``, in pixels from the
+        picture's top-left corner, with their colours and widths: what the slider panel's browser part
+        needs to play the episode over ``background_png`` without asking the kernel for each frame."""
+        self.show(episode, None)
+        height = self.figure.bbox.height
+        points_per_pixel = self.figure.dpi / 72
+        steps = np.arange(episode.num_steps + 1)
+        cursors = []
+        for ax in (self.position_ax, self.angle_ax):
+            x, _ = _pixels(ax, np.column_stack([steps, np.zeros(len(steps))]), height)
+            cursors.append({"x": _rounded(x), "top": round(float(height - ax.bbox.y1), 2), "bottom": round(float(height - ax.bbox.y0), 2)})
+        ax = self.drawing.ax
+        cart_x, pole_angle = episode.states[:, 0], episode.states[:, 2]
+        left, top = _pixels(ax, np.column_stack([cart_x - CART_WIDTH / 2, np.full(len(cart_x), CART_HEIGHT)]), height)
+        right, bottom = _pixels(ax, [[CART_WIDTH / 2, 0.0]], height)
+        zero_x, _ = _pixels(ax, [[0.0, 0.0]], height)
+        axle_x, axle_y = _pixels(ax, np.column_stack([cart_x, np.full(len(cart_x), CART_HEIGHT)]), height)
+        tip_x, tip_y = _pixels(ax, np.column_stack([cart_x + POLE_LENGTH * np.sin(pole_angle),
+                                                    CART_HEIGHT + POLE_LENGTH * np.cos(pole_angle)]), height)
+        scale = float(right[0] - zero_x[0]) / (CART_WIDTH / 2)  # pixels per metre (equal aspect)
+        caption_x, caption_y = self.drawing.caption.get_transform().transform(self.drawing.caption.get_position())
+        return {
+            "num_steps": int(episode.num_steps),
+            "ending": how_it_ended(episode),
+            "cursors": cursors,
+            "cursor": {"color": to_hex(self.cursors[0].get_color()), "width": self.cursors[0].get_linewidth() * points_per_pixel},
+            "clip": {"left": round(float(ax.bbox.x0), 2), "top": round(float(height - ax.bbox.y1), 2),
+                     "width": round(float(ax.bbox.width), 2), "height": round(float(ax.bbox.height), 2)},
+            "cart": {"left": _rounded(left), "top": round(float(top[0]), 2), "width": round(CART_WIDTH * scale, 2),
+                     "height": round(float(bottom[0] - top[0]), 2), "color": to_hex(self.drawing.cart.get_facecolor())},
+            "pole": {"x0": _rounded(axle_x), "y0": round(float(axle_y[0]), 2), "x1": _rounded(tip_x), "y1": _rounded(tip_y),
+                     "width": self.drawing.pole.get_linewidth() * points_per_pixel, "color": to_hex(self.drawing.pole.get_color())},
+            "axle": {"radius": round(self.drawing.axle.get_radius() * scale, 2), "color": to_hex(self.drawing.axle.get_facecolor())},
+            "caption": {"x": round(float(caption_x), 2), "y": round(float(height - caption_y), 2),
+                        "size": self.drawing.caption.get_fontsize() * points_per_pixel, "color": to_hex(self.drawing.caption.get_color())},
+        }
+
+    def background_png(self, episode):
+        """PNG bytes of what ``frame_png`` keeps for ``episode``: the figure without the moving parts."""
+        if self._background is None or self._background[0] is not episode:
+            self.frame_png(episode, None)
+        self.canvas.restore_region(self._background[1])
+        pixels = np.asarray(self.canvas.buffer_rgba())
+        buffer = io.BytesIO()
+        Image.fromarray(pixels, "RGBA").save(buffer, format="png", compress_level=PNG_COMPRESS_LEVEL)
+        return buffer.getvalue()
+
 
 def how_it_ended(episode):
     """Why ``episode`` stopped, in a few words: the pole fell, the cart left the track, or the step limit."""
@@ -232,3 +281,13 @@ def message_png(lines, size_inches, dpi):
     buffer = io.BytesIO()
     Image.fromarray(np.asarray(canvas.buffer_rgba()), "RGBA").save(buffer, format="png", compress_level=PNG_COMPRESS_LEVEL)
     return buffer.getvalue()
+
+
+def _pixels(ax, points, height):
+    """Display coordinates of data ``points`` (N x 2) on ``ax``, from the picture's top-left corner."""
+    xy = ax.transData.transform(np.asarray(points, dtype=float))
+    return xy[:, 0], height - xy[:, 1]
+
+
+def _rounded(values):
+    return [round(float(value), 2) for value in np.atleast_1d(values)]
