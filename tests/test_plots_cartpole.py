@@ -109,6 +109,7 @@ def test_drawing_tilts_the_pole_with_the_angle():
 
 
 
+@pytest.mark.todo("1.1.1")
 def test_frames_of_one_view_are_the_frames_of_a_new_view():
     """The panel's quick frames (the episode's part kept, the cursor and cart drawn over it) do not
     depend on what the view drew before: any order of episodes and steps gives the same pixels."""
@@ -124,6 +125,7 @@ def test_frames_of_one_view_are_the_frames_of_a_new_view():
     assert pixels.shape == (352, 720, 4) and np.all(pixels[..., 3] == 1.0)
 
 
+@pytest.mark.todo("1.1.1")
 def test_frame_png_draws_what_show_draws():
     """A frame is the figure as savefig draws it after ``show``: the cart and the cursor included."""
     episode = play_episode(CartPoleLinearPolicy((0.0, 0.0, 0.0, -0.2)), seed=0)
@@ -143,6 +145,7 @@ def test_message_png_is_an_opaque_picture_of_the_given_size():
         message_png("one string", (9.0, 4.4), 80)
 
 
+@pytest.mark.todo("1.1.1")
 def test_the_overlay_puts_the_moving_parts_where_frame_png_draws_them():
     """The browser draws ▶ Play from ``overlay`` over ``background_png``: at every step its cursors and
     its cart lie where the kernel's frame has them, over the picture without them."""

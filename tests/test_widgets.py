@@ -365,6 +365,7 @@ def test_a_state_the_front_end_never_sends_changes_nothing(state):
     assert (panel.state, bytes(panel.image.value)) == before
 
 
+@pytest.mark.todo("1.1.1")
 def test_without_its_front_end_part_the_panel_draws_the_controls_values():
     # A front end without anywidget: only the controls' own messages arrive, and they decide.
     panel = SliderPanel()
@@ -393,6 +394,7 @@ def not_done_errors():
     return errors
 
 
+@pytest.mark.todo("1.1.1")
 @pytest.mark.parametrize("error", not_done_errors(), ids=lambda error: type(error).__name__)
 def test_a_todo_not_done_is_named_in_the_panel_and_the_panel_recovers(monkeypatch, error):
     def not_done(params, seed):
