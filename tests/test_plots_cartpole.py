@@ -135,7 +135,7 @@ def test_frame_png_draws_what_show_draws():
     assert frame.shape == saved.shape
     # Where a cursor crosses a curve the two draw in another order (0.03% of the pixels); without the
     # cursors and the cart 1% would differ.
-    assert np.mean(np.any(frame != saved, axis=2)) < 0.001, "the quick frame differs from the saved figure"
+    assert np.mean(np.any(frame != saved, axis=2)) < 0.1 / 100, "the quick frame differs from the saved figure"
 
 
 def test_message_png_is_an_opaque_picture_of_the_given_size():
