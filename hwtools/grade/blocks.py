@@ -14,59 +14,31 @@ import ast
 import hashlib
 import io
 import os
-import re
 import shutil
 import stat
 import tokenize
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
-MARKER = re.compile(
-    r"^(?P<indent>[ \t]*)###[ \t]*(?P<kind>BEGIN|END)[ \t]+(?P<style>SOLUTION|TODO)[ \t]+(?P<id>[0-9]+(?:\.[0-9]+)+)[ \t]*$"
-)
+from hwtools import markers
+
 MAX_FILE_BYTES = 1_000_000  # a submitted source file larger than this is not read
 PACKAGE = "hwlib"
+Block = markers.Block  # todo, begin, end, indent, body (the lines between the markers), style, module_level
 
 
 class SubmissionError(Exception):
-    """A submission file that cannot be read (missing, a link, too large, not UTF-8 text)."""
-
-
-@dataclass(frozen=True)
-class Block:
-    todo: str
-    begin: int  # index of the BEGIN line
-    end: int  # index of the END line
-    indent: str
-    body: tuple  # the lines between the markers
-    style: str = "SOLUTION"  # SOLUTION (instructor's kit) or TODO (student edition)
-
-    @property
-    def module_level(self):
-        return self.indent == ""
+    """A submission file that cannot be read (missing, a link, too large, not text Python can read)."""
 
 
 def find_blocks(text, where="<text>"):
-    """The fenced blocks of ``text``, in order. Unbalanced or nested markers raise SubmissionError."""
-    lines = text.split("\n")
-    blocks, open_block = [], None
-    for index, line in enumerate(lines):
-        match = MARKER.match(line)
-        if match is None:
-            continue
-        if match["kind"] == "BEGIN":
-            if open_block is not None:
-                raise SubmissionError(f"{where}:{index + 1}: BEGIN {match['id']} inside the open block {open_block[0]}")
-            open_block = (match["id"], index, match["indent"], match["style"])
-        else:
-            if open_block is None or open_block[0] != match["id"]:
-                raise SubmissionError(f"{where}:{index + 1}: END {match['id']} without its BEGIN")
-            todo, begin, indent, style = open_block
-            blocks.append(Block(todo, begin, index, indent, tuple(lines[begin + 1:index]), style))
-            open_block = None
-    if open_block is not None:
-        raise SubmissionError(f"{where}:{open_block[1] + 1}: BEGIN {open_block[0]} has no END")
-    return blocks
+    """The fenced blocks of ``text`` (either style), in order, by the rules of ``hwtools.markers``
+    (any line ends, markers with trailing white space or tabs). Unbalanced or nested markers raise
+    SubmissionError."""
+    try:
+        return markers.find_blocks(markers.split_lines(text), lambda index: f"{where}:{index + 1}")
+    except markers.MarkerError as error:
+        raise SubmissionError(str(error)) from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -75,8 +47,10 @@ def find_blocks(text, where="<text>"):
 
 
 def read_text(root, relative):
-    """The UTF-8 text of ``root/relative``, refusing links (of the file or any folder on the way),
-    anything but a regular file, and files over MAX_FILE_BYTES."""
+    """The text of ``root/relative`` as Python reads a source file (``markers.decode_python``: UTF-8
+    or the encoding its coding line names, a BOM dropped, ``\\r\\n`` and ``\\r`` made ``\\n``), refusing
+    links (of the file or any folder on the way), anything but a regular file, and files over
+    MAX_FILE_BYTES."""
     root = Path(root)
     path = root
     for part in PurePosixPath(relative).parts:
@@ -97,9 +71,9 @@ def read_text(root, relative):
     with os.fdopen(fd, "rb") as handle:
         data = handle.read(MAX_FILE_BYTES + 1)
     try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        raise SubmissionError(f"{relative}: not UTF-8 text") from None
+        return markers.decode_python(data, relative)
+    except markers.MarkerError as error:
+        raise SubmissionError(str(error)) from None
 
 
 @dataclass
@@ -112,6 +86,13 @@ class Submission:
     problems: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     texts: dict = field(default_factory=dict)  # relative path -> text, of the files read
+
+
+def _near_misses(text, todo):
+    """Where the file has a line that names TODO ``todo``'s marker but is not one (``# BEGIN TODO 1.2.1``)."""
+    lines = [(number, line.strip()) for number, line in enumerate(markers.split_lines(text), 1)
+             if markers.near_miss(line) and todo in line]
+    return "".join(f"; line {number} looks like a marker but is not one: {line[:80]!r}" for number, line in lines[:2])
 
 
 NOT_USED = ("conftest.py", "sitecustomize.py", "usercustomize.py", "pytest.ini", "setup.cfg", "tox.ini")
@@ -136,7 +117,8 @@ def read_submission(root, layout):
             found = [block.body for block in blocks if block.todo == todo]
             if len(found) != expected:
                 submission.problems[todo] = (f"{relative}: expected {expected} block(s) marked "
-                                             f"'### BEGIN TODO {todo}' ... '### END TODO {todo}', found {len(found)}")
+                                             f"'### BEGIN TODO {todo}' ... '### END TODO {todo}', found {len(found)}"
+                                             + _near_misses(text, todo))
             else:
                 submission.bodies[todo] = tuple(found)
     changed = []
@@ -188,7 +170,7 @@ def write_submission(layout, out_dir, bodies=None, others="stub", style="TODO"):
             if block.todo in bodies:
                 codes = bodies[block.todo]
                 code = codes if isinstance(codes, str) else codes[number]
-                lines = reindent(code.strip("\n").split("\n"), block.indent)
+                lines = reindent(markers.split_lines(code.strip("\r\n")), block.indent)
             elif others == "reference":
                 lines = list(block.body)
             else:
@@ -209,7 +191,7 @@ def write_submission(layout, out_dir, bodies=None, others="stub", style="TODO"):
 
 def skeleton(text):
     """The lines outside the blocks (markers reduced to the TODO id), to compare two editions."""
-    lines = text.split("\n")
+    lines = markers.split_lines(text)
     try:
         blocks = find_blocks(text)
     except SubmissionError:
@@ -340,9 +322,12 @@ def compose_file(text, blocks, choose):
 def composite_files(layout, student_bodies, reference_todos, only=None):
     """{relative path: text} of a kit built from ``layout`` (the reference): blocks of the TODOs in
     ``student_bodies`` get that code, blocks in ``reference_todos`` keep the reference's, every
-    other block is stubbed. ``only``: the relative paths to include (with an empty package
-    ``__init__`` where the reference's is left out)."""
+    other block is stubbed. ``only``: the relative paths to include, with the kit's modules they
+    import (``kit_imports``: ``hwlib/_todo.py`` once a module imports it), and an empty package
+    ``__init__`` where the reference's is left out."""
     files = {}
+    if only is not None:
+        only = kit_imports(layout.files, only)
     for relative, text in layout.files.items():
         if only is not None and relative not in only:
             continue
@@ -366,6 +351,37 @@ def composite_files(layout, student_bodies, reference_todos, only=None):
                 if parent.parts and init not in files:
                     files[init] = ""
     return files
+
+
+def kit_imports(files, paths):
+    """``paths`` and every module of ``files`` ({relative path: text}) they import, directly or not
+    (``import hwlib.x``, ``from hwlib.x import y``, ``from hwlib import x``, ``from . import x``);
+    never a package's ``__init__.py``."""
+    found, queue = set(), [path for path in paths if path in files]
+    while queue:
+        relative = queue.pop()
+        if relative in found:
+            continue
+        found.add(relative)
+        try:
+            tree = ast.parse(files[relative])
+        except SyntaxError:
+            continue
+        package = PurePosixPath(relative).parent.parts
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [alias.name.split(".") for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = list(package[:len(package) - node.level + 1]) if node.level else []
+                base += node.module.split(".") if node.module else []
+                names = [base] + [base + [alias.name] for alias in node.names]
+            else:
+                continue
+            for parts in names:
+                candidate = "/".join(parts) + ".py"  # packages get an empty __init__ (see composite_files)
+                if candidate in files and candidate not in found:
+                    queue.append(candidate)
+    return found | set(paths)
 
 
 def files_digest(files):
@@ -392,76 +408,3 @@ def remove_tree(path):
         function(failed_path)
 
     shutil.rmtree(path, onerror=make_writable)
-
-
-# --------------------------------------------------------------------------------------------
-# What a block reaches for: named in the feedback, never a reason for points either way
-# --------------------------------------------------------------------------------------------
-
-_SUSPECT_MODULES = {
-    "_pytest": "pytest's internals", "pytest": "pytest", "unittest": "unittest", "socket": "the network (socket)",
-    "urllib": "the network (urllib)", "http": "the network (http)", "requests": "the network (requests)",
-    "subprocess": "other programs (subprocess)", "multiprocessing": "other processes (multiprocessing)",
-    "ctypes": "ctypes", "builtins": "builtins", "importlib": "importlib", "inspect": "inspect", "gc": "gc",
-    "signal": "signals", "resource": "resource limits", "shutil": "files (shutil)", "glob": "files (glob)",
-    "pathlib": "files (pathlib)", "pickle": "pickle", "json": "json files", "threading": "threads",
-}
-_SUSPECT_CALLS = {
-    "sys.exit": "sys.exit", "os._exit": "os._exit", "exit": "exit()", "quit": "quit()", "os.fork": "os.fork",
-    "os.kill": "os.kill", "os.system": "os.system", "os.popen": "os.popen", "os.setsid": "os.setsid",
-    "os.remove": "deleting files", "os.unlink": "deleting files", "os.listdir": "listing folders",
-    "os.walk": "listing folders", "os.environ": "the environment", "open": "open() on files",
-    "exec": "exec", "eval": "eval", "compile": "compile", "__import__": "__import__", "globals": "globals()",
-    "setattr": "setattr", "np.testing": "numpy.testing", "numpy.testing": "numpy.testing",
-    "math.isclose": "math.isclose", "sys.modules": "sys.modules", "sys.settrace": "sys.settrace",
-}
-_SUSPECT_METHODS = {"__eq__", "__ne__", "__bool__", "__array__", "__float__", "__getattr__", "__del__"}
-
-
-def scan_body(body, module_level=False):
-    """Sorted short names of what the block uses that a homework solution does not need:
-    ending the process, other processes, the network, files, patching modules, objects with a
-    custom ``__eq__``... The feedback names them; they change no points."""
-    try:
-        tree = ast.parse("\n".join(reindent(body, "")) if module_level else
-                         "def _block():\n" + "\n".join(reindent(body, "    ") + ["    pass"]))
-    except SyntaxError:
-        return []
-    seen = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            names = [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            names = [node.module or ""] + [f"{node.module}.{alias.name}" for alias in node.names]
-        else:
-            names = []
-        for name in names:
-            top = name.split(".")[0]
-            if top in _SUSPECT_MODULES:
-                seen.add(_SUSPECT_MODULES[top])
-            if name in _SUSPECT_CALLS:
-                seen.add(_SUSPECT_CALLS[name])
-        if isinstance(node, (ast.Attribute, ast.Name)):
-            dotted = _dotted(node)
-            if dotted in _SUSPECT_CALLS:
-                seen.add(_SUSPECT_CALLS[dotted])
-        if isinstance(node, ast.FunctionDef) and node.name in _SUSPECT_METHODS:
-            seen.add(f"a custom {node.name}")
-        if isinstance(node, (ast.Assign, ast.AugAssign)):
-            for target in (node.targets if isinstance(node, ast.Assign) else [node.target]):
-                dotted = _dotted(target) if isinstance(target, ast.Attribute) else None
-                if dotted and "." in dotted and dotted.split(".")[0] in {"np", "numpy", "math", "sys", "os", "builtins",
-                                                                        "hwlib", "_pytest", "pytest"}:
-                    seen.add(f"replacing {dotted}")
-    return sorted(seen)
-
-
-def _dotted(node):
-    parts = []
-    while isinstance(node, ast.Attribute):
-        parts.append(node.attr)
-        node = node.value
-    if isinstance(node, ast.Name):
-        parts.append(node.id)
-        return ".".join(reversed(parts))
-    return None

@@ -45,16 +45,27 @@ STOPS = {
     "violation": "the worker broke the protocol (an answer out of turn, a second answer, or one to a request "
                  "never made)",
 }
-_SIGNALS = {9: "killed (a limit was reached)", 24: "the CPU-time limit", 11: "a crash (segmentation fault)",
-            6: "an abort"}
+TIMEOUTS = {"the CPU-time limit": "the CPU-time limit was reached",  # the launcher's words, without its numbers
+            "the wall-clock limit of": "the wall-clock limit was reached (the code waited)"}
+_SIGNALS = {9: "killed (a limit was reached)", 24: "the CPU-time limit", 25: "the file-size limit (too much output?)",
+            11: "a crash (segmentation fault)", 6: "an abort"}
 
 
 class Stop(Exception):
-    """The run ends here; ``status`` is a key of STOPS."""
+    """The run ends here; ``status`` is a key of STOPS, ``detail`` a value of TIMEOUTS or empty."""
 
-    def __init__(self, status):
+    def __init__(self, status, detail=""):
         super().__init__(status)
-        self.status = status
+        self.status, self.detail = status, detail
+
+
+def _stop(ending):
+    """The Stop of a launcher's "status:detail": the detail only as one of the fixed TIMEOUTS."""
+    status, _, detail = ending.partition(":")
+    if status not in STOPS:
+        return Stop("garbled")
+    return Stop(status, next((words for start, words in TIMEOUTS.items() if detail.startswith(start)), "")
+                if status == "timeout" else "")
 
 
 @dataclass
@@ -126,7 +137,7 @@ class Conversation:
         while True:
             reply = self.process.receive()
             if isinstance(reply, str):
-                raise Stop(reply.split(":", 1)[0] if reply.split(":", 1)[0] in STOPS else "garbled")
+                raise _stop(reply)
             op = reply.get("op")
             if op == expect and _integer(reply.get("re")) and reply["re"] == number:
                 return reply
@@ -294,6 +305,8 @@ def _ended(code, phase):
     """Why the worker ended, in fixed words: once hidden inputs were sent, not even the signal."""
     if phase == "hidden":
         return STOPS["ended"] + " (during the hidden checks)"
+    if code is not None and code > 128 and code - 128 in _SIGNALS:  # bubblewrap passes a signal on as 128 + it
+        code = 128 - code
     if code is not None and code < 0:
         return f"the worker was ended: {_SIGNALS.get(-code, 'a signal')}"
     return "the worker ended before answering (sys.exit or os._exit in the code?)"
@@ -303,7 +316,7 @@ def run_cases(process, todo, visible, hidden, pool):
     """Run ``visible`` then ``hidden`` cases ([(case id, probe, args)]) on the started worker
     ``process`` for TODO ``todo``; (Outcome, {case id: result}). ``pool``: the ReferencePool that
     answers served calls (None: none are answered)."""
-    conversation, outcome, results = Conversation(process, todo, pool), Outcome(), {}
+    conversation, outcome, results, timeout = Conversation(process, todo, pool), Outcome(), {}, ""
     try:
         conversation.ask({"op": "setup", "mode": "worker", "todo": todo}, "ready")
         for phase, cases in (("visible", visible), ("hidden", hidden)):
@@ -319,13 +332,15 @@ def run_cases(process, todo, visible, hidden, pool):
         except Stop:
             pass
     except Stop as stop:
-        outcome.status = stop.status
+        outcome.status, timeout = stop.status, stop.detail
     finally:
         conversation.release(broken=outcome.status != "ok")
         outcome.exit_code, outcome.stderr_tail, outcome.seconds = process.finish(graceful=outcome.status == "ok")
         outcome.notes = list(dict.fromkeys(conversation.notes))
     if outcome.status == "ended":
         outcome.detail = _ended(outcome.exit_code, outcome.phase)
+    elif outcome.status == "timeout" and timeout and outcome.phase != "hidden":  # which limit, in fixed words
+        outcome.detail = timeout
     elif outcome.status != "ok":
         outcome.detail = STOPS[outcome.status]
     return outcome, results

@@ -219,6 +219,9 @@ class Grader:
         """The student's blocks for ``todo``, or a string saying why they cannot be used."""
         if todo in read.problems:
             return read.problems[todo]
+        if todo not in read.bodies:  # the kit it was read with has no block of this TODO
+            return (f"no code for TODO {todo} was found: its markers '### BEGIN TODO {todo}' ... "
+                    f"'### END TODO {todo}' are not in your hwlib/")
         module_level = any(block.module_level for file_blocks in layout.blocks_by_file.values()
                            for block in file_blocks if block.todo == todo)
         for body in read.bodies[todo]:
@@ -245,7 +248,7 @@ class Grader:
             bodies = self._parsed_bodies(todo, read, layout)
             if todo not in NOT_SERVED and not isinstance(bodies, str):
                 own[todo] = bodies
-        return ReferencePool(self.sandbox, blocks.composite_files(layout, own, set()), idle=1.0)
+        return ReferencePool(self.sandbox, blocks.composite_files(layout, own, set()), idle=1.0, trusted=False)
 
     def _run_todo(self, todo, read, layout, pool):
         """{"student": (Outcome, results by case id) or a reason string, "reference": {case id: values} or None}."""

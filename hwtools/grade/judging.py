@@ -10,7 +10,7 @@ solution is replaced (``Scrubber``).
 
 from __future__ import annotations
 
-from hwtools.grade import blocks, broker, checks
+from hwtools.grade import broker, checks, suspects
 from hwtools.grade.channel import fingerprint, text
 from hwtools.todos import TODO_BY_ID
 
@@ -101,6 +101,8 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
                 entry["first_failure"] = {"check": behaviour.description, "hidden": False,
                                           "input": scrub(checks.show(args)), "expected": scrub(verdict.expected),
                                           "actual": scrub(verdict.actual)}
+                entry["first_failure"].update({name: scrub(getattr(verdict, name))  # where they differ, and by how much
+                                               for name in ("difference", "tolerance") if getattr(verdict, name)})
             else:
                 entry["first_failure"] = {"check": behaviour.description, "hidden": True,
                                           "input": "a hidden input (not shown)"}
@@ -117,7 +119,7 @@ def seen(todo, read, layout):
         return []
     module_level = any(block.module_level for file_blocks in layout.blocks_by_file.values()
                        for block in file_blocks if block.todo == todo)
-    names = sorted({name for body in read.bodies[todo] for name in blocks.scan_body(body, module_level)})
+    names = sorted({name for body in read.bodies[todo] for name in suspects.scan_body(body, module_level)})
     if not names:
         return []
     return [f"seen in your code for {todo}: {', '.join(names)}. None of it can change a grade: your code runs "

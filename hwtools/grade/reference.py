@@ -10,11 +10,15 @@ A ``ReferencePool`` keeps a few servers for one ``Grader``: each is a worker pro
 (``Sandbox.start``) on one private copy of the reference kit, told by its first message to serve
 (``runtime.py``). A run borrows one for its whole conversation (``acquire``/``release``); a server
 that failed or timed out is ended, never lent again. Idle servers end after ``idle`` seconds, and
-all of them with ``close()``. The kit is written in a folder only this user can read.
+all of them with ``close()``. The kit is written in a folder only this user can read. A pool is
+``trusted`` when its kit holds no student code (the reference's; the student edition's preview
+serves the student's own kit, untrusted): under the user fallback a trusted server runs as the
+grader's own user (``Sandbox.run_kind``), so no server shares a uid with a student's run and the
+pool's users are left to students' runs.
 
 Interface (for the grader and the broker)::
 
-    pool = ReferencePool(sandbox, files)              # files: {relative path: text} of the kit
+    pool = ReferencePool(sandbox, files, trusted=True)  # files: {relative path: text} of the kit
     server = pool.acquire(need=seconds)               # a live server with that much life left
     number = server.send({"op": "call", ...})         # numbered by the server object
     reply = server.receive(deadline)                  # a dict, or raises ServerFailed / ServerTimeout
@@ -91,8 +95,8 @@ def _spawn(job):
 class ReferenceServer:
     """One server process: ``send`` numbers each message, ``receive`` checks nothing but the form."""
 
-    def __init__(self, sandbox, kit_dir, lifetime=LIFETIME):
-        self.process = _spawn(lambda: sandbox.start(kit_dir, lifetime))
+    def __init__(self, sandbox, kit_dir, lifetime=LIFETIME, trusted=True):
+        self.process = _spawn(lambda: sandbox.start(kit_dir, lifetime, trusted=trusted))
         self.sent, self.broken, self.closed, self.last_used = 0, False, False, time.monotonic()
         try:
             number = self.send({"op": "setup", "mode": "server"})
@@ -149,8 +153,8 @@ class ReferenceServer:
 class ReferencePool:
     """Reference servers for one grader, on one copy of the kit ``files`` (see the module docstring)."""
 
-    def __init__(self, sandbox, files, idle=IDLE_SECONDS, lifetime=LIFETIME):
-        self.sandbox, self.idle, self.lifetime = sandbox, float(idle), float(lifetime)
+    def __init__(self, sandbox, files, idle=IDLE_SECONDS, lifetime=LIFETIME, trusted=True):
+        self.sandbox, self.idle, self.lifetime, self.trusted = sandbox, float(idle), float(lifetime), trusted
         self.files = dict(files) | runtime_files()
         self.digest = blocks.files_digest(self.files)
         self._folder, self._idle, self._lock, self._timer, self._closed = None, [], threading.Lock(), None, False
@@ -179,7 +183,7 @@ class ReferencePool:
                 threading.Thread(target=server.close, daemon=True).start()
             kit = self._kit()
             self.started += 1
-        server = ReferenceServer(self.sandbox, kit, max(self.lifetime, need + SETUP_SECONDS + 60))
+        server = ReferenceServer(self.sandbox, kit, max(self.lifetime, need + SETUP_SECONDS + 60), self.trusted)
         self.live.add(server)
         return server
 
