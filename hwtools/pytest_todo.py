@@ -3,7 +3,8 @@
 Registered by the kit's top-level ``conftest.py``. For the student it does four things:
 
 * a test that fails because a TODO is not done yet (its stub raised ``TodoNotDone``, or the
-  failure's text says "TODO 1.2.1 is not done yet", as a notebook run by the test does) is
+  failure's text says "TODO 1.2.1 is not done yet", as a notebook run by the test does, and that
+  TODO's code is indeed still the stub) is
   reported in two lines, "TODO 1.2.1 is not done yet: scalar_finite_diff in hwlib/finite_diff.py"
   and what to do, instead of a traceback (``--tb=long`` adds the traceback after them);
 * any other failure of a test marked ``@pytest.mark.todo("1.2.1")`` starts with "TODO 1.2.1:" (in
@@ -100,8 +101,9 @@ def pytest_runtest_makereport(item, call):
     full = item.config.option.tbstyle == "long"  # --tb=long: the whole traceback after the TODO line
     todo = _not_done_of_cell(item) if _is_notebook_cell(item) else _not_done_of_exception(call.excinfo.value)
     if todo is None and not _marked_todos(item):
-        named = _NOT_DONE_TEXT.search(str(report.longrepr))  # e.g. a notebook run by the test stopped there
-        todo = named.group(1) if named and named.group(1) in TODO_BY_ID else None
+        # e.g. a notebook run by the test stopped there; believed only of a TODO whose code is the stub
+        named = _NOT_DONE_TEXT.search(str(report.longrepr))
+        todo = named.group(1) if named and named.group(1) in _untouched_in(item.config) else None
     if todo is not None:
         if _is_notebook_cell(item):
             _stopped.setdefault(str(item.fspath), todo)
@@ -112,8 +114,18 @@ def pytest_runtest_makereport(item, call):
         report.longrepr = TodoFirst(f"TODO {', '.join(dict.fromkeys(marked))}: {item.name} failed", report.longrepr)
 
 
-def pytest_runtest_setup(item):
+def _untouched_in(config):
+    """The TODOs still stubbed in the kit under test (pytest's root folder), read once per run."""
     global _untouched  # noqa: PLW0603 - read once per run
+    if _untouched is None:
+        try:
+            _untouched = untouched_todos(config.rootpath)
+        except Exception:  # noqa: BLE001 - never let this shortcut break a test run
+            _untouched = []
+    return _untouched
+
+
+def pytest_runtest_setup(item):
     if _is_notebook_cell(item):
         todo = _stopped.get(str(item.fspath))
         if todo is not None:
@@ -121,24 +133,14 @@ def pytest_runtest_setup(item):
         return
     if item.get_closest_marker("browser") is None:
         return
-    if _untouched is None:
-        try:
-            _untouched = untouched_todos()
-        except Exception:  # noqa: BLE001 - never let this shortcut break a test run
-            _untouched = []
     needed = _marked_todos(item) or list(TODO_BY_ID)
-    missing = [todo for todo in needed if todo in _untouched]
+    missing = [todo for todo in needed if todo in _untouched_in(item.config)]
     if missing:
         pytest.skip(f"TODO {missing[0]} is not done yet ({_where(missing[0])}): this browser test runs the notebooks, "
                     f"which need {'it' if len(missing) == 1 else 'it and ' + ', '.join(missing[1:])}")
 
 
 def pytest_terminal_summary(terminalreporter):
-    global _untouched  # noqa: PLW0603
-    if _untouched is None:
-        try:
-            _untouched = untouched_todos()
-        except Exception:  # noqa: BLE001
-            _untouched = []
-    if _untouched:
-        terminalreporter.write_line(f"TODOs not done yet (their code is still the stub): {', '.join(_untouched)}")
+    untouched = _untouched_in(terminalreporter.config)
+    if untouched:
+        terminalreporter.write_line(f"TODOs not done yet (their code is still the stub): {', '.join(untouched)}")
