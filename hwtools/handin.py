@@ -76,7 +76,11 @@ def read_back(zip_path, kit):
     when the reader refuses the zip."""
     from hwtools.grade import blocks, classroom  # noqa: PLC0415 - the grader's own reader
 
-    layout = blocks.load_layout(kit)
+    try:
+        layout = blocks.load_layout(kit)
+    except blocks.SubmissionError as error:
+        raise HandinError(f"the TODO markers in your files do not pair up: {error} (each TODO's code sits between "
+                          "its ### BEGIN TODO and ### END TODO lines, as the kit gave them)") from None
     try:
         with classroom.open_submission(zip_path, classroom.kit_file_names(layout)) as opened:
             taken = sorted(path.relative_to(opened.kit).as_posix() for path in opened.kit.rglob("*") if path.is_file())

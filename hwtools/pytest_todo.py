@@ -7,8 +7,9 @@ Registered by the kit's top-level ``conftest.py``. For the student it does four 
   TODO's code is indeed still the stub) is
   reported in two lines, "TODO 1.2.1 is not done yet: scalar_finite_diff in hwlib/finite_diff.py"
   and what to do, instead of a traceback (``--tb=long`` adds the traceback after them);
-* any other failure of a test marked ``@pytest.mark.todo("1.2.1")`` starts with "TODO 1.2.1:" (in
-  the summary line and on the first line of the failure);
+* a test marked ``@pytest.mark.todo("1.2.1")`` that fails while that TODO's code is still the stub
+  is reported the same way; any other failure of such a test starts with "TODO 1.2.1:" (in the
+  summary line and on the first line of the failure);
 * in a notebook, once a cell stops at a TODO not done yet, the cells after it are skipped with that
   reason, as Run All stops there too (nbval would otherwise run them all, each failing again);
 * a browser test (marker ``browser``) is skipped when a TODO it needs is untouched (its block is
@@ -104,6 +105,8 @@ def pytest_runtest_makereport(item, call):
         # e.g. a notebook run by the test stopped there; believed only of a TODO whose code is the stub
         named = _NOT_DONE_TEXT.search(str(report.longrepr))
         todo = named.group(1) if named and named.group(1) in _untouched_in(item.config) else None
+    if todo is None:  # a test of a TODO whose code is still the stub fails because of that
+        todo = next((marked for marked in _marked_todos(item) if marked in _untouched_in(item.config)), None)
     if todo is not None:
         if _is_notebook_cell(item):
             _stopped.setdefault(str(item.fspath), todo)

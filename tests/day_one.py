@@ -20,8 +20,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-from instructor.release import build_student_edition
-
 KIT = Path(__file__).resolve().parents[1]
 
 STAND_IN_TODO = '''"""TodoNotDone: what an untouched TODO's stub raises (a stand-in written by tests/day_one.py)."""
@@ -87,6 +85,8 @@ def raising_stubs(kit):
 
 def day_one_edition(out, **options):
     """The untouched student edition in ``out`` (built, then ``raising_stubs``)."""
+    from instructor.release import build_student_edition  # noqa: PLC0415 - the instructor's tool
+
     build_student_edition(KIT, out, **options)
     raising_stubs(out)
     return Path(out)
@@ -141,3 +141,34 @@ def first_lines(outputs):
 
 def error_of(outputs):
     return next((output for output in outputs if output["output_type"] == "error"), None)
+
+
+RUN_ALL = r'''
+import json, sys
+import nbformat
+from nbclient import NotebookClient
+from nbclient.exceptions import CellExecutionError
+
+path = sys.argv[1]
+notebook = nbformat.read(path, as_version=4)
+client = NotebookClient(notebook, timeout=900, kernel_name="python3",
+                        resources={"metadata": {"path": str(__import__("pathlib").Path(path).parent)}})
+try:
+    client.execute()
+    stopped = None
+except CellExecutionError:
+    stopped = next((cell.id for cell in notebook.cells if cell.cell_type == "code"
+                    and any(out.output_type == "error" for out in cell.get("outputs", []))), "?")
+ran = [cell.id for cell in notebook.cells if cell.cell_type == "code" and cell.get("execution_count")]
+cells = {cell.id: cell.get("outputs", []) for cell in notebook.cells if cell.cell_type == "code"}
+json.dump({"stopped": stopped, "ran": ran, "outputs": cells}, sys.stdout)
+'''
+
+
+def run_all(notebook, kit):
+    """Run > Run All Cells in a fresh kernel: {"stopped": the id of the cell it stopped at (None if
+    none), "ran": ids of the cells that ran, "outputs": {id: outputs}}."""
+    done = subprocess.run([sys.executable, "-c", RUN_ALL, str(notebook)], capture_output=True, text=True,
+                          env=kit_env(kit), cwd=kit, timeout=1800)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout)

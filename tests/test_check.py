@@ -8,6 +8,9 @@
 * an interrupt ends the grader's subprocess;
 * in a kernel, a NameError for a value a cell stopped at a TODO could not make names that TODO;
 * pytest's report of a failure names its TODO first.
+
+The tests marked ``hidden`` need the instructor's edition (its solutions, wrong solutions and
+reference); the student edition leaves them out.
 """
 
 from __future__ import annotations
@@ -105,6 +108,7 @@ def test_code_that_cannot_run_says_why_and_a_manual_todo_says_who_grades_it():
     assert said.startswith("TODO 1.1.2 (") and "graded by hand: report: the table" in said
 
 
+@pytest.mark.hidden  # the instructor's edition: every TODO solved
 def test_untouched_todos_reads_the_stubs(tmp_path):
     assert untouched_todos(KIT) == []  # the instructor's edition holds every solution
     (tmp_path / "hwlib").mkdir()
@@ -137,6 +141,7 @@ def test_assigned_names_are_the_cells_top_level_names():
 # --------------------------------------------------------------------------------------------
 
 
+@pytest.mark.hidden  # the instructor's edition: every TODO solved
 def test_the_instructors_edition_passes_its_visible_checks():
     lines = check_lines(grade_todo("2.2.1"))
     assert lines[0] == "TODO 2.2.1 (sigmoid): all 2 visible checks pass"
@@ -170,6 +175,7 @@ def wrong_edition(tmp_path_factory):
     return kit
 
 
+@pytest.mark.hidden  # needs the instructor's wrong solutions and reference
 @pytest.mark.parametrize("todo", ["2.2.1", "1.2.1"])
 def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_inputs(wrong_edition, todo):
     from hwtools.grade import Grader
