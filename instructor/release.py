@@ -71,6 +71,8 @@ INSTRUCTOR_ONLY = (
     "benchmarks/requirements-bench.txt",
     "benchmarks/bench_grading.py",  # it grades against the reference solution
     "benchmarks/bench_classroom.py",
+    "benchmarks/bench_dayone.py",  # it builds a student edition with the solutions kept
+    "tests/day_one.py",  # the helper of the student-edition tests
 )
 
 ANSWER_KEY = "hwtools/grade/answer_key.json"  # written by the build: the visible checks' expected values
