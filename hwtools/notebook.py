@@ -7,7 +7,9 @@ Importing this module in a notebook also makes a cell that needs a value of an e
 which TODO it waits for: when a cell stopped at a TODO that is not done yet (its stub raised
 ``TodoNotDone``), the names that cell would have set are remembered, and a later ``NameError``
 for one of them reads "TODO 1.3.1 is not done yet: `run` comes from a cell above that stopped
-there" instead of a traceback. Every other error is shown as IPython always shows it.
+there" instead of a traceback. Every other error is shown as IPython always shows it. A cell that
+stops at a TODO also scrolls JupyterLab to itself: *Run All* starts by scrolling to the notebook's
+last cell, and the student should see where it stopped.
 """
 
 from __future__ import annotations
@@ -120,6 +122,8 @@ class DayOne:
         except Exception:  # noqa: BLE001 - a cell IPython itself could not transform
             return
         todo = self.todo_of(result.error_in_exec)
+        if todo is not None:
+            self.show_in_view()
         own = set(_BLOCK.findall(source))
         if todo is not None and todo in own and todo not in self.open_cells:
             self.open_cells.append(todo)
@@ -132,6 +136,15 @@ class DayOne:
                 self.missing[name] = todo
             elif name in user:
                 self.missing.pop(name, None)
+
+    def show_in_view(self):
+        """Scroll JupyterLab to this cell's message: Run All scrolls to the notebook's last cell
+        when it starts, so without this the student would not see where it stopped. An invisible
+        output (JavaScript, run only in the live session; empty text otherwise)."""
+        try:
+            self.shell.display_pub.publish(data={"application/javascript": _SCROLL_TO_CELL, "text/plain": ""}, metadata={})
+        except Exception:  # noqa: BLE001 - a front end without displays
+            pass
 
     def name_error(self, shell, etype, value, tb, tb_offset=None):
         name = getattr(value, "name", None)
@@ -146,6 +159,15 @@ class DayOne:
         return None
 
 
+_SCROLL_TO_CELL = """(() => {
+  let tries = 0;
+  const show = () => {
+    const cell = element.closest('.jp-Cell');
+    if (cell) { (cell.querySelector('.jp-Cell-outputArea') || cell).scrollIntoView({block: 'center'}); }
+    else if (tries++ < 40) { setTimeout(show, 50); }
+  };
+  setTimeout(show, 0);
+})();"""
 _BLOCK = re.compile(r"^[ \t]*###[ \t]*BEGIN[ \t]+(?:TODO|SOLUTION)[ \t]+(\d+(?:\.\d+)+)", re.M)
 
 

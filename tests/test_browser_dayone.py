@@ -1,8 +1,8 @@
 """Day one in JupyterLab, as a student sees it (headless Chromium, 1280 x 720, file browser open).
 
-- **Quick start.** JupyterLab serves the kit's folder, as the README's command starts it: the
-  file browser shows ``hwlib/`` beside ``notebooks/``, and the ``hwlib/cartpole.py`` link under
-  the 1.1.1 heading opens that file in an editor tab, one click away.
+- **Quick start.** JupyterLab serves the kit's folder, as the README's command starts it: one
+  click on the file browser's root shows ``hwlib/`` beside ``notebooks/``, and one click on the
+  ``hwlib/cartpole.py`` link under the 1.1.1 heading opens that file in an editor tab.
 - **The untouched student edition.** Run All stops at the first cell that needs a TODO; its
   output, on screen without scrolling, begins with "TODO 1.1.1 is not done yet". Then every
   code cell is run in turn (Shift+Enter, as a student steps through): each cell that needs a
@@ -68,21 +68,17 @@ def browser(chromium, tmp_path_factory):
             context.close()
 
 
-@contextlib.contextmanager
-def kit_imported(kit):
-    """Kernels started by a server started in this block import the kit at ``kit``."""
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setenv("PYTHONPATH", str(kit))
-        yield
-
-
 @pytest.fixture(scope="module")
 def day_one_lab(chromium, tmp_path_factory):
-    """JupyterLab on the untouched student edition, served from its root as the quick start does."""
+    """JupyterLab on the untouched student edition, served from its root as the quick start does;
+    its kernels import that edition (PYTHONPATH, set only while the server starts)."""
     from day_one import day_one_edition
 
     kit = day_one_edition(tmp_path_factory.mktemp("day-one") / "kit")
-    with kit_imported(kit), running_jupyterlab(kit, tmp_path_factory.mktemp("lab-state")) as lab:
+    with contextlib.ExitStack() as stack:
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setenv("PYTHONPATH", str(kit))
+            lab = stack.enter_context(running_jupyterlab(kit, tmp_path_factory.mktemp("lab-state")))
         yield lab
 
 
@@ -186,6 +182,8 @@ def first_line_names_a_todo(cell):
 def test_quick_start_serves_the_kit_so_hwlib_is_one_click_away(page, day_one_lab):
     with screenshot_on_failure(page, "dayone-quick-start"):
         open_notebook(page, day_one_lab, P1)
+        # The file browser opens on the notebook's folder; one click on its root shows the kit.
+        page.locator(".jp-BreadCrumbs-home").first.click()
         listing = page.locator(".jp-DirListing-content .jp-DirListing-itemText")
         listing.filter(has_text=re.compile(r"^hwlib$")).first.wait_for()
         assert {"hwlib", "notebooks"} <= set(listing.all_inner_texts()), listing.all_inner_texts()
