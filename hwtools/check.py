@@ -224,8 +224,8 @@ def check_lines(entry):
 # Which TODOs are untouched (their blocks still hold the stub), without running anything
 # --------------------------------------------------------------------------------------------
 
-_STUB_CODE = re.compile(r"(pass|raise (TodoNotDone|NotImplementedError)\b.*|from hwlib(\._todo)? import TodoNotDone"
-                        r"|import hwlib(\._todo)?|[A-Za-z_]\w* = None)")
+_STUB_CODE = re.compile(r"(pass|raise ([\w.]+\.)?(TodoNotDone|NotImplementedError)\b.*"
+                        r"|from hwlib(\._todo)? import TodoNotDone|import hwlib(\._todo)?|[A-Za-z_]\w* = None)")
 
 
 def _is_stub(body):
