@@ -9,8 +9,11 @@ An untouched TODO (its stub raises ``TodoNotDone``) prints "TODO 1.2.1 is not do
 * In the student edition the grader compares with the answer key the release build wrote,
   runs the student's own code for the other TODOs, and only has visible checks.
 * In the instructor's edition (its ``hwlib/`` holds the solutions) it grades the kit against
-  itself, hidden inputs included; a check cell shows the visible part only, so its output is the
-  same in both editions for the same code, and stable for nbval.
+  itself, hidden inputs included; a check cell shows the visible part only: the solutions' checks
+  read the same in both editions, and the stored outputs are stable for nbval.
+
+On the visible inputs its verdicts are the instructor's grade's whenever the other TODOs a check
+runs are right (``tests/test_check.py`` compares them on wrong solutions).
 
 The grader reads the files on disk, so a check sees the code as last saved, even when the
 notebook's kernel still runs older code (``hwtools.notebook`` says so). Standard library only:

@@ -20,20 +20,18 @@ except in CI (CI=true), where that is a failure. ``pytest -m "not browser"`` lea
 from __future__ import annotations
 
 import contextlib
-import os
 import re
 import shutil
 from pathlib import Path
 
 import pytest
 
-from lab_under_test import CHROMIUM_ARGS, chromium_path, running_jupyterlab
+from lab_under_test import running_jupyterlab
+from test_browser import ARTIFACTS, browser, chromium, menu, screenshot_on_failure  # noqa: F401 (fixtures by name)
 
 pytestmark = pytest.mark.browser
 
 KIT = Path(__file__).resolve().parents[1]
-ARTIFACTS = KIT / "test-artifacts"
-VIEWPORT = {"width": 1280, "height": 720}
 P1, P2 = "p1_cartpole_finite_difference.ipynb", "p2_food_cutting_logistic_regression.ipynb"
 TIMEOUT_MS = 240_000  # one notebook's Run All on a busy 2-core machine
 CELL_TIMEOUT_MS = 120_000  # one cell
@@ -41,31 +39,6 @@ NOT_DONE = re.compile(r"^TODO \d+\.\d+\.\d+ is not done yet: ")
 # Code cells that need no TODO (by their first line): they run on day one.
 NEEDS_NO_TODO = ("%matplotlib inline", "env = cartpole.make_env()", "### BEGIN TODO 1.1.2")
 WAITING = ("from hwlib.landscape import",)  # the origin slice: until reward_slice plays the student's policy (18.4)
-
-
-@pytest.fixture(scope="module")
-def chromium():
-    found = chromium_path()
-    if found is None:
-        reason = "Debian's Chromium is not installed at /usr/bin/chromium (apt-get install chromium)"
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{reason}. In CI it must be there: .ci/run installs it.")
-        pytest.skip(reason)
-    return found
-
-
-@pytest.fixture(scope="module")
-def browser(chromium, tmp_path_factory):
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as playwright:
-        context = playwright.chromium.launch_persistent_context(
-            str(tmp_path_factory.mktemp("chromium-profile")), executable_path=str(chromium), args=CHROMIUM_ARGS,
-            headless=True, viewport=VIEWPORT)
-        try:
-            yield context
-        finally:
-            context.close()
 
 
 @pytest.fixture(scope="module")
@@ -100,17 +73,6 @@ def page(browser):
         page.close()
 
 
-@contextlib.contextmanager
-def screenshot_on_failure(page, name):
-    try:
-        yield
-    except BaseException:
-        ARTIFACTS.mkdir(exist_ok=True)
-        with contextlib.suppress(Exception):
-            page.screenshot(path=str(ARTIFACTS / f"{name}-failure.png"), full_page=True)
-        raise
-
-
 def shut_kernels(lab):
     with contextlib.suppress(Exception):
         for kernel in lab.api("GET", "/api/kernels") or []:
@@ -132,11 +94,6 @@ def open_notebook(page, lab, name):
     page.goto(lab.url(f"notebooks/{name}"), timeout=TIMEOUT_MS)
     page.locator(".jp-NotebookPanel .jp-Notebook .jp-Cell").first.wait_for(timeout=TIMEOUT_MS)
     wait_idle(page, TIMEOUT_MS)
-
-
-def menu(page, menu_name, item_label):
-    page.locator(".lm-MenuBar-item", has_text=re.compile(rf"^{re.escape(menu_name)}$")).click()
-    page.locator(".lm-Menu-item:visible .lm-Menu-itemLabel", has_text=re.compile(rf"^{re.escape(item_label)}$")).click()
 
 
 CELLS_JS = """() => {
