@@ -33,6 +33,8 @@ INSTRUCTOR_ONLY = (
     "benchmarks/requirements-bench.txt",
     "benchmarks/bench_grading.py",  # it grades against the reference solution
     "benchmarks/bench_classroom.py",
+    "benchmarks/bench_dayone.py",  # it builds a student edition with the solutions kept
+    "tests/day_one.py",  # the helper of the student-edition tests
 )
 
 # Only the homework holds solution blocks; tooling elsewhere (the grader) may talk about markers freely.

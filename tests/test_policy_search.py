@@ -125,6 +125,7 @@ def test_iterations_to_converge():
         iterations_to_converge([])
 
 
+@pytest.mark.todo("1.3.3")  # it trains with settings.LEARNING_RATE
 def test_learning_rate_sweep_reports_a_fraction_per_rate():
     sweep = learning_rate_sweep([1e-6, settings.LEARNING_RATE], num_seeds=3, num_training_iterations=8)
     assert sweep.rewards.shape == (2, 3, 9)

@@ -91,18 +91,20 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
         passed = bool(verdicts) and all(verdict.passed for _, _, verdict in verdicts)
         failed_on = None if passed else ("visible" if any(v and not d.passed for v, _, d in verdicts) else "hidden")
         earned += behaviour.points if passed else 0.0
+        # The first visible input this check fails on, shown in full (the notebook's check cells show it per check).
+        first = next(((args, verdict) for v, args, verdict in verdicts if v and not verdict.passed), None)
+        visible_failure = None if first is None else {
+            "input": scrub(checks.show(first[0])), "expected": scrub(first[1].expected), "actual": scrub(first[1].actual)}
+        if visible_failure is not None:  # where they differ, and the tolerance
+            visible_failure.update({name: scrub(getattr(first[1], name))
+                                    for name in ("difference", "tolerance") if getattr(first[1], name)})
         entry["checks"].append({
             "check": behaviour.description, "points": behaviour.points, "passed": passed, "failed_on": failed_on,
-            "visible_inputs": sum(v for v, _, _ in verdicts), "hidden_inputs": sum(not v for v, _, _ in verdicts)})
+            "visible_inputs": sum(v for v, _, _ in verdicts), "hidden_inputs": sum(not v for v, _, _ in verdicts),
+            "visible_failure": visible_failure})
         if entry["first_failure"] is None and not passed:
-            first = next(((args, verdict) for v, args, verdict in verdicts if v and not verdict.passed), None)
-            if first is not None:
-                args, verdict = first
-                entry["first_failure"] = {"check": behaviour.description, "hidden": False,
-                                          "input": scrub(checks.show(args)), "expected": scrub(verdict.expected),
-                                          "actual": scrub(verdict.actual)}
-                entry["first_failure"].update({name: scrub(getattr(verdict, name))  # where they differ, and by how much
-                                               for name in ("difference", "tolerance") if getattr(verdict, name)})
+            if visible_failure is not None:
+                entry["first_failure"] = {"check": behaviour.description, "hidden": False, **visible_failure}
             else:
                 entry["first_failure"] = {"check": behaviour.description, "hidden": True,
                                           "input": "a hidden input (not shown)"}

@@ -88,7 +88,7 @@ def plan(todo):
             served[entry.name] = entry
         elif entry.todo is not None and entry.todo != todo:
             refused[entry.name] = (f"{entry.where} (TODO {entry.todo}) is not available while TODO {todo} is "
-                                   f"checked: it computes what TODO {todo} computes")
+                                   f"checked: it computes what TODO {todo} computes, so it is not part of this check")
     return served, refused
 
 

@@ -1,0 +1,157 @@
+"""Day one's costs: Run All of problem 1, and the check cell of each TODO.
+
+    .venv/bin/python benchmarks/bench_dayone.py [--rounds N] [--skip-run-all]
+
+1. **Run All of problem 1** (the instructor's edition, a fresh kernel, as ``nbconvert --execute``
+   does): wall clock and CPU seconds (the kernel and everything it ran: the check cells' graders
+   and their sandboxes), cell by cell, with the check cells and, side by side in the same run
+   (alternating, so that a change of load hits both alike), a copy without them. The README's
+   target is 30 s on a quiet 2-core box; on a shared machine the CPU seconds are the better guide
+   to what a quiet box gives.
+2. **One check per TODO** (``hwtools.check.grade_todo``, what ``check("1.2.1")`` runs): wall and
+   CPU seconds in the instructor's edition (grading the solutions, hidden inputs included) and in
+   a student edition whose TODOs hold the solutions (the answer key, visible checks only: what a
+   student who is done waits for). The target is 3 s per TODO on 2 cores.
+3. **The untouched student edition's ``pytest``** (``tests/day_one.py``'s day-one edition, every
+   test as the student runs them): seconds and lines printed (it took 13.5 min and printed 3,400
+   lines before its failures named their TODO and its browser tests waited for errors they could
+   not see).
+
+The load average of the machine is printed before and after: on a shared machine wall times
+grow with it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+KIT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(KIT))
+P1 = KIT / "notebooks" / "p1_cartpole_finite_difference.ipynb"
+
+
+def children_cpu():
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def run_all(path):
+    """(wall seconds including the kernel's start, CPU seconds of the kernel and its children,
+    [(cell id, first line, seconds)]) of one Run All in a fresh kernel."""
+    import nbformat
+    from nbclient import NotebookClient
+
+    notebook = nbformat.read(path, as_version=4)
+    client = NotebookClient(notebook, timeout=1800, kernel_name="python3", resources={"metadata": {"path": str(path.parent)}})
+    cells = []
+    cpu, started = children_cpu(), time.perf_counter()
+    with client.setup_kernel():
+        for index, cell in enumerate(notebook.cells):
+            if cell.cell_type == "code":
+                at = time.perf_counter()
+                client.execute_cell(cell, index)
+                cells.append((cell.id, cell.source.splitlines()[0][:48] if cell.source else "", time.perf_counter() - at))
+    time.sleep(0.5)  # the kernel has exited and been waited for: its CPU is counted
+    return time.perf_counter() - started, children_cpu() - cpu, cells
+
+
+def without_checks(path, out):
+    notebook = json.loads(path.read_text())
+    notebook["cells"] = [cell for cell in notebook["cells"]
+                         if not (cell["cell_type"] == "code" and "".join(cell["source"]).startswith("check("))]
+    out.write_text(json.dumps(notebook))
+    return out
+
+
+def bench_run_all(rounds):
+    with tempfile.TemporaryDirectory(prefix="bench-dayone-") as scratch:
+        bare = without_checks(P1, Path(scratch) / P1.name)
+        shutil.copy2(P1, Path(scratch) / "with_checks.ipynb")
+        results = {"with check cells": [], "without": []}
+        for _ in range(rounds):
+            for name, path in (("with check cells", Path(scratch) / "with_checks.ipynb"), ("without", bare)):
+                wall, cpu, cells = run_all(path)
+                results[name].append((wall, cpu, cells))
+                print(f"  Run All of p1 {name:16s}: {wall:6.1f} s wall, {cpu:6.1f} s CPU", flush=True)
+    print("\nRun All of p1 (median of %d)" % rounds)
+    for name, runs in results.items():
+        print(f"  {name:16s}: {statistics.median(r[0] for r in runs):6.1f} s wall, "
+              f"{statistics.median(r[1] for r in runs):6.1f} s CPU")
+    slowest = max(results["with check cells"], key=lambda r: r[0])[2]
+    print("  cells of the slowest run with check cells, over 0.5 s:")
+    for cell_id, first, seconds in slowest:
+        if seconds >= 0.5:
+            print(f"    {cell_id:14s} {seconds:6.1f} s  {first}")
+
+
+def bench_checks(rounds):
+    from hwtools.check import grade_todo
+    from hwtools.grade import checks
+    from instructor.release import build_student_edition
+    from hwtools.todos import TODO_BY_ID
+
+    with tempfile.TemporaryDirectory(prefix="bench-dayone-") as scratch:
+        student = Path(scratch) / "student"
+        build_student_edition(KIT, student, keep=frozenset(TODO_BY_ID))
+        print(f"\none check per TODO (median of {rounds}): wall / CPU seconds")
+        print(f"  {'TODO':6s} {'instructor edition':>22s} {'student edition (done)':>24s}")
+        worst = 0.0
+        for todo in checks.GRADED_TODOS:
+            row = []
+            for kit in (KIT, student):
+                walls, cpus = [], []
+                for _ in range(rounds):
+                    cpu, started = children_cpu(), time.perf_counter()
+                    grade_todo(todo, kit=kit)
+                    walls.append(time.perf_counter() - started)
+                    cpus.append(children_cpu() - cpu)
+                row.append((statistics.median(walls), statistics.median(cpus)))
+            worst = max(worst, row[1][0])
+            print(f"  {todo:6s} {row[0][0]:10.2f} / {row[0][1]:5.2f} s {row[1][0]:12.2f} / {row[1][1]:5.2f} s", flush=True)
+
+
+def bench_untouched_pytest():
+    import subprocess
+
+    sys.path.insert(0, str(KIT / "tests"))
+    from day_one import day_one_edition, kit_env
+
+    with tempfile.TemporaryDirectory(prefix="bench-dayone-") as scratch:
+        kit = day_one_edition(Path(scratch) / "kit")
+        started = time.perf_counter()
+        done = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider"], cwd=kit, env=kit_env(kit),
+                              capture_output=True, text=True)
+        seconds = time.perf_counter() - started
+    lines = done.stdout.splitlines()
+    print(f"\nthe untouched student edition's pytest: {seconds:.0f} s, {len(lines)} lines; {lines[-1].strip('= ')}")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--rounds", type=int, default=2)
+    parser.add_argument("--skip-run-all", action="store_true")
+    parser.add_argument("--skip-checks", action="store_true")
+    parser.add_argument("--skip-pytest", action="store_true")
+    args = parser.parse_args()
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    if not args.skip_checks:
+        bench_checks(args.rounds)
+    if not args.skip_run_all:
+        bench_run_all(args.rounds)
+    if not args.skip_pytest:
+        bench_untouched_pytest()
+    print(f"\nload average {os.getloadavg()[0]:.1f} at the end")
+
+
+if __name__ == "__main__":
+    main()

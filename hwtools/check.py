@@ -1,0 +1,261 @@
+"""The check under each TODO: ``check("1.2.1")`` runs that TODO's visible checks through the kit's grader.
+
+A notebook's check cell is one line, ``check("1.2.1")`` (the convention of otter-grader's
+``grader.check("q1")``). It runs ``python -m hwtools.grade KIT --todo 1.2.1`` in a subprocess, the
+same command and the same verdicts a student gets in a terminal, and prints one line per check
+of that TODO: ``pass``, or ``FAIL`` with the visible input, the expected and the actual value.
+An untouched TODO (its stub raises ``TodoNotDone``) prints "TODO 1.2.1 is not done yet".
+
+* In the student edition the grader compares with the answer key the release build wrote,
+  runs the student's own code for the other TODOs, and only has visible checks.
+* In the instructor's edition (its ``hwlib/`` holds the solutions) it grades the kit against
+  itself, hidden inputs included; a check cell shows the visible part only: the solutions' checks
+  read the same in both editions, and the stored outputs are stable for nbval.
+
+On the visible inputs its verdicts are the instructor's grade's whenever the other TODOs a check
+runs are right (``tests/test_check.py`` compares them on wrong solutions).
+
+The grader reads the files on disk, so a check sees the code as last saved, even when the
+notebook's kernel still runs older code (``hwtools.notebook`` says so). Standard library only:
+this module runs nothing of the homework in the notebook's kernel.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import textwrap
+from pathlib import Path
+
+from hwtools.todos import TODO_BY_ID
+
+KIT_ROOT = Path(__file__).resolve().parents[1]
+WIDTH = 100  # characters per printed line
+TIMEOUT = 1800.0  # seconds for one check in all; the grader's own limit (60 s per run) applies inside
+
+_TODO_ID = re.compile(r"\b(\d+\.\d+\.\d+)\b")
+_NOT_PART = "not part of this check"  # the grader's stub for a TODO that a check does not run
+
+
+class CheckError(RuntimeError):
+    """The check itself could not run (not a verdict on the student's code)."""
+
+    def _render_traceback_(self):  # IPython shows these lines instead of a traceback
+        return [f"The check could not run: {self}"]
+
+
+def not_done_todo(error_type, message, todo=None):
+    """The TODO id that an exception says is not done yet, or None.
+
+    ``error_type`` is the exception's class name, ``message`` its text (``todo``: its ``todo``
+    attribute, if any). A stub raises ``TodoNotDone("1.2.1")``; a ``NotImplementedError`` whose
+    text names a TODO counts too. The grader's own stand-in for a TODO outside a check ("... is not
+    part of this check") does not.
+    """
+    message = str(message)
+    if _NOT_PART in message:
+        return None
+    if error_type == "TodoNotDone":
+        if todo:
+            return str(todo)
+        found = _TODO_ID.search(message)
+        return found.group(1) if found else None
+    if error_type == "NotImplementedError":
+        found = re.search(r"\bTODO (\d+\.\d+\.\d+)\b", message)
+        return found.group(1) if found else None
+    return None
+
+
+def _module_level_names():
+    """{NAME: TODO id} of the TODOs that are a module-level setting ("hwlib/settings.py: LEARNING_RATE")."""
+    names = {}
+    for todo in TODO_BY_ID.values():
+        file, _, what = todo.code.partition(": ")
+        if file.endswith(".py") and what.isidentifier() and what.isupper():
+            names[what] = todo.id
+    return names
+
+
+def not_done_in_text(text):
+    """The TODO id named by the first "TypeName: message" error in a text (the grader's words for
+    an error of the student's code), or None. A setting still None ("LEARNING_RATE is None") is
+    its TODO not done yet."""
+    match = re.match(r"\s*(\w+): (.*)", str(text), re.S)
+    if not match:
+        return None
+    setting = re.match(r"(\w+) is None\b", match.group(2))
+    if setting and setting.group(1) in _module_level_names():
+        return _module_level_names()[setting.group(1)]
+    return not_done_todo(match.group(1), match.group(2))
+
+
+def grade_todo(todo, kit=KIT_ROOT, python=None, timeout=TIMEOUT):
+    """The grader's result entry for TODO ``todo`` of the kit at ``kit`` (see ``hwtools.grade``),
+    from ``python -m hwtools.grade KIT --todo TODO --json FILE`` run in a subprocess. An interrupt
+    ends that subprocess at once."""
+    if todo not in TODO_BY_ID:
+        raise CheckError(f"{todo!r} is not a TODO of the handout; they are {', '.join(TODO_BY_ID)}")
+    kit = Path(kit).resolve()
+    with tempfile.TemporaryDirectory(prefix="hwcheck-") as scratch:
+        out = Path(scratch) / "result.json"
+        command = [python or sys.executable, "-m", "hwtools.grade", str(kit), "--todo", todo, "--json", str(out), "--brief"]
+        env = {**os.environ, "MPLBACKEND": "Agg"}
+        process = subprocess.Popen(command, cwd=kit, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                   stderr=subprocess.PIPE, text=True, start_new_session=True)
+        try:
+            _, stderr = process.communicate(timeout=timeout)
+        except BaseException:  # KeyboardInterrupt (Kernel > Interrupt), a timeout: end the grader now
+            _kill(process)
+            raise
+        if process.returncode != 0 or not out.is_file():
+            last = [line for line in (stderr or "").strip().splitlines() if line.strip()][-1:] or [f"exit code {process.returncode}"]
+            raise CheckError(f"python -m hwtools.grade --todo {todo}: {last[0].removeprefix('error: ')}")
+        result = json.loads(out.read_text(encoding="utf-8"))
+    entries = [entry for entry in result["todos"] if entry["id"] == todo]
+    if len(entries) != 1:
+        raise CheckError(f"the grader's result has no entry for TODO {todo}")
+    return entries[0]
+
+
+def _kill(process):
+    try:
+        os.killpg(process.pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+    process.wait()
+
+
+def _where(todo):
+    """"scalar_finite_diff in hwlib/finite_diff.py" from the TODO table's "file: function" (its
+    library part where it names a notebook cell too)."""
+    parts = [part.strip() for part in TODO_BY_ID[todo].code.split(";")]
+    code = next((part for part in parts if part.partition(": ")[0].endswith(".py")), parts[0])
+    file, _, what = code.partition(": ")
+    if file.endswith(".ipynb"):
+        return f"{what} of {file}"
+    return f"{what} in {file}" if what else code
+
+
+def _visible_failure(entry, check):
+    """The first visible input ``check`` fails on ({input, expected, actual}), or None. (A grader
+    that gives only the TODO's first failure gives it for that check only.)"""
+    if check.get("visible_failure"):
+        return check["visible_failure"]
+    first = entry.get("first_failure")
+    if first and not first["hidden"] and first["check"] == check["check"]:
+        return {name: first[name] for name in ("input", "expected", "actual")}
+    return None
+
+
+def _not_done(entry):
+    """(the TODOs that the failing visible checks of ``entry`` say are not done yet, in order;
+    True when no failing check failed otherwise). Checks the grader gives no details for count
+    as neither."""
+    todos, other = [], False
+    for check in entry["checks"]:
+        if check["passed"] or check["failed_on"] != "visible":
+            continue
+        failure = _visible_failure(entry, check)
+        if failure is None:
+            continue
+        todo = not_done_in_text(failure["actual"])
+        if todo is None:
+            other = True
+        elif todo not in todos:
+            todos.append(todo)
+    return todos, bool(todos) and not other
+
+
+def _wrap(text, indent, hang=4):
+    return textwrap.wrap(text, width=WIDTH, initial_indent=indent, subsequent_indent=indent + " " * hang,
+                         break_long_words=True, break_on_hyphens=False) or [indent]
+
+
+def check_lines(entry):
+    """The lines a check cell prints for the grader's result ``entry`` of one TODO: its visible
+    checks only (a check that fails only on hidden inputs passes on the visible ones)."""
+    todo, title = entry["id"], entry["title"]
+    checks = entry["checks"]
+    if not checks and entry["manual_possible"]:
+        return _wrap(f"TODO {todo} ({title}) has no automatic checks; it is graded by hand: {entry['manual']}.", "")
+    if entry["status"] not in ("graded", "not done yet") or not checks:
+        lines = _wrap(f"TODO {todo} ({title}): not checked ({entry['status']})", "")
+        for note in entry["notes"]:
+            lines += _wrap(note, "  ")
+        return lines
+    not_done, only_not_done = _not_done(entry)
+    if entry["status"] == "not done yet":  # a grader that says so itself
+        not_done, only_not_done = [todo], True
+    if only_not_done and todo in not_done:
+        lines = [f"TODO {todo} is not done yet: {_where(todo)}",
+                 f"  Write it between ### BEGIN TODO {todo} and ### END TODO {todo}, save the file, and run this check again."]
+        others = [other for other in not_done if other != todo]
+        if others:
+            lines += _wrap(f"Its checks also run your {' and '.join(f'TODO {o} ({_where(o)})' for o in others)}, "
+                           f"not done yet either.", "  ")
+        return lines
+    if only_not_done:
+        others = " and ".join(f"TODO {other} ({_where(other)})" for other in not_done)
+        return _wrap(f"TODO {todo} ({title}): its checks run your {others}, which "
+                     f"{'is' if len(not_done) == 1 else 'are'} not done yet; do {'it' if len(not_done) == 1 else 'them'} "
+                     "first, then run this check again.", "")
+    visible_pass = [check["passed"] or check["failed_on"] == "hidden" for check in checks]
+    passed = sum(visible_pass)
+    if len(checks) == 1:
+        summary = "the visible check passes" if passed else "the visible check fails"
+    else:
+        summary = f"all {len(checks)} visible checks pass" if passed == len(checks) else \
+            f"{passed} of {len(checks)} visible checks pass"
+    lines = _wrap(f"TODO {todo} ({title}): {summary}", "")
+    for check, ok in zip(checks, visible_pass):
+        lines += _wrap(f"{'pass' if ok else 'FAIL'}  {check['check']}", "  ", hang=6)
+        failure = None if ok else _visible_failure(entry, check)
+        if failure:
+            for name in ("input", "expected", "actual"):
+                lines += _wrap(f"{name + ':':<10}{failure[name]}", "        ")
+    for note in entry["notes"]:
+        lines += _wrap(f"note: {note}", "  ")
+    return lines
+
+
+# --------------------------------------------------------------------------------------------
+# Which TODOs are untouched (their blocks still hold the stub), without running anything
+# --------------------------------------------------------------------------------------------
+
+_STUB_CODE = re.compile(r"(pass|raise ([\w.]+\.)?(TodoNotDone|NotImplementedError)\b.*"
+                        r"|from hwlib(\._todo)? import TodoNotDone|import hwlib(\._todo)?|[A-Za-z_]\w* = None)")
+
+
+def _is_stub(body):
+    code = [line.split("  #")[0].strip() for line in body if line.strip() and not line.strip().startswith("#")]
+    return all(_STUB_CODE.fullmatch(line) for line in code)
+
+
+def untouched_todos(kit=KIT_ROOT):
+    """The TODO ids (in the handout's order) whose every code block in ``hwlib/`` and the notebooks'
+    code cells is still the student edition's stub: comments, ``pass``, ``raise TodoNotDone(...)``
+    or ``NAME = None``. Read from the files; nothing is run. (In the instructor's edition: none.)"""
+    from hwtools.grade.blocks import SubmissionError, find_blocks  # noqa: PLC0415 - the grader's marker reader
+
+    kit = Path(kit)
+    bodies = {}
+    sources = [path.read_text(encoding="utf-8") for path in sorted((kit / "hwlib").rglob("*.py"))]
+    for path in sorted((kit / "notebooks").glob("*.ipynb")):
+        try:
+            cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
+        except (OSError, ValueError, KeyError):
+            continue
+        sources += ["".join(cell["source"]) for cell in cells if cell.get("cell_type") == "code"]
+    for text in sources:
+        try:
+            blocks = find_blocks(text.replace("\r\n", "\n"))
+        except SubmissionError:
+            continue
+        for block in blocks:
+            bodies.setdefault(block.todo, []).append(block.body)
+    return [todo for todo in TODO_BY_ID if todo in bodies and all(_is_stub(body) for body in bodies[todo])]

@@ -1,0 +1,285 @@
+"""The notebooks' check cells and day-one messages (hwtools/check.py, hwtools/notebook.py, hwtools/pytest_todo.py).
+
+* ``check("1.2.1")`` prints the grader's verdict on each visible check: pass, or FAIL with the
+  visible input, the expected value and the actual one; "not done yet" for an untouched TODO;
+  the TODO another one waits for;
+* its verdicts are those of the instructor's grade on the visible inputs (a student edition with
+  wrong solutions, checked with its answer key, against the instructor's grade of the same code);
+* an interrupt ends the grader's subprocess;
+* in a kernel, a NameError for a value a cell stopped at a TODO could not make names that TODO;
+* pytest's report of a failure names its TODO first.
+
+The tests marked ``hidden`` need the instructor's edition (its solutions, wrong solutions and
+reference); the student edition leaves them out.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from hwtools import check as check_module
+from hwtools.check import CheckError, check_lines, grade_todo, not_done_in_text, not_done_todo, untouched_todos
+from hwtools.notebook import assigned_names
+
+KIT = Path(__file__).resolve().parents[1]
+WRONG = KIT / "instructor" / "wrong_solutions"
+
+
+# --------------------------------------------------------------------------------------------
+# Reading what the grader says
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("kind", "message", "todo"), [
+    ("TodoNotDone", "TODO 1.2.1 is not done yet: scalar_finite_diff in hwlib/finite_diff.py", "1.2.1"),
+    ("TodoNotDone", "2.2.1", "2.2.1"),
+    ("NotImplementedError", "TODO 1.3.1 is not done yet", "1.3.1"),
+    ("NotImplementedError", "", None),  # a bare NotImplementedError names no TODO
+    ("NotImplementedError", "TODO 2.2.1 is not part of this check", None),  # the grader's own stand-in
+    ("ValueError", "TODO 1.2.1 is not done yet", None),
+])
+def test_not_done_todo_reads_what_a_stub_raises(kind, message, todo):
+    assert not_done_todo(kind, message) == todo
+
+
+def test_the_graders_text_of_an_error_is_read_too():
+    assert not_done_in_text("TodoNotDone: TODO 1.1.1 is not done yet: __call__") == "1.1.1"
+    assert not_done_in_text("ValueError: LEARNING_RATE is None: it is not set yet") == "1.3.3"
+    assert not_done_in_text("ValueError: x must be finite") is None
+    assert not_done_in_text("[0., 0.]") is None
+
+
+def entry(checks, status="graded", todo="1.2.1", notes=()):
+    return {"id": todo, "title": "central finite differences, eq. (3)", "status": status, "checks": checks,
+            "notes": list(notes), "manual_possible": 0, "manual": "", "first_failure": None}
+
+
+def a_check(description, passed, failed_on=None, actual=None):
+    failure = None if actual is None else {"input": "x=[1.0, 2.0], h=0.5", "expected": "[2.0, 4.0]", "actual": actual}
+    return {"check": description, "points": 5, "passed": passed, "failed_on": failed_on, "visible_inputs": 2,
+            "hidden_inputs": 3, "visible_failure": failure}
+
+
+def test_one_line_per_check_and_the_failing_inputs():
+    lines = check_lines(entry([a_check("one step for every coordinate", True),
+                               a_check("a step per coordinate", False, "visible", "[0.0, 0.0]")]))
+    assert lines[0] == "TODO 1.2.1 (central finite differences, eq. (3)): 1 of 2 visible checks pass"
+    assert lines[1] == "  pass  one step for every coordinate"
+    assert lines[2] == "  FAIL  a step per coordinate"
+    assert [line.split()[0] for line in lines[3:]] == ["input:", "expected:", "actual:"]
+    assert lines[3].endswith("x=[1.0, 2.0], h=0.5") and lines[4].endswith("[2.0, 4.0]") and lines[5].endswith("[0.0, 0.0]")
+
+
+def test_a_check_that_fails_only_on_hidden_inputs_passes_on_the_visible_ones():
+    lines = check_lines(entry([a_check("one step", False, "hidden"), a_check("steps", True)]))
+    assert lines[0].endswith("all 2 visible checks pass") and "FAIL" not in "\n".join(lines)
+
+
+def test_an_untouched_todo_is_not_done_yet():
+    text = "TodoNotDone: TODO 1.2.1 is not done yet: scalar_finite_diff in hwlib/finite_diff.py"
+    lines = check_lines(entry([a_check("one step", False, "visible", text), a_check("steps", False, "visible", text)]))
+    assert lines == ["TODO 1.2.1 is not done yet: scalar_finite_diff in hwlib/finite_diff.py",
+                     "  Write it between ### BEGIN TODO 1.2.1 and ### END TODO 1.2.1, save the file, and run this check again."]
+    assert check_lines(entry([a_check("one step", False, "visible", "[0.0]")], status="not done yet"))[0] == \
+        "TODO 1.2.1 is not done yet: scalar_finite_diff in hwlib/finite_diff.py"
+
+
+def test_a_todo_waiting_for_another_names_it():
+    text = "TodoNotDone: TODO 1.1.1 is not done yet: CartPoleLinearPolicy.__call__ in hwlib/cartpole.py"
+    lines = check_lines(entry([a_check("mean reward", False, "visible", text)], todo="1.3.1"))
+    said = " ".join(" ".join(lines).split())
+    assert lines[0].startswith("TODO 1.3.1 (") and "TODO 1.1.1 (CartPoleLinearPolicy.__call__ in hwlib/cartpole.py)" \
+        in said and "not done yet" in said
+
+
+def test_code_that_cannot_run_says_why_and_a_manual_todo_says_who_grades_it():
+    lines = check_lines(entry([], status="not graded", notes=["your code for TODO 1.2.1 does not parse (line 2)"]))
+    assert lines == ["TODO 1.2.1 (central finite differences, eq. (3)): not checked (not graded)",
+                     "  your code for TODO 1.2.1 does not parse (line 2)"]
+    manual = {**entry([], status="graded by hand", todo="1.1.2"), "manual_possible": 2, "manual": "report: the table"}
+    said = " ".join(" ".join(check_lines(manual)).split())
+    assert said.startswith("TODO 1.1.2 (") and "graded by hand: report: the table" in said
+
+
+@pytest.mark.hidden  # the instructor's edition: every TODO solved
+def test_untouched_todos_reads_the_stubs(tmp_path):
+    assert untouched_todos(KIT) == []  # the instructor's edition holds every solution
+    (tmp_path / "hwlib").mkdir()
+    (tmp_path / "hwlib" / "finite_diff.py").write_text(textwrap.dedent("""\
+        def scalar_finite_diff(f, x, h):
+            ### BEGIN TODO 1.2.1
+            # TODO 1.2.1: a hint
+            raise TodoNotDone("1.2.1")
+            ### END TODO 1.2.1
+        def sigmoid(z):
+            ### BEGIN TODO 2.2.1
+            values = 1 / (1 + np.exp(-z))
+            ### END TODO 2.2.1
+        ### BEGIN TODO 1.3.3
+        LEARNING_RATE = None  # TODO 1.3.3: a rate
+        ### END TODO 1.3.3
+        """))
+    assert untouched_todos(tmp_path) == ["1.2.1", "1.3.3"]
+
+
+def test_assigned_names_are_the_cells_top_level_names():
+    source = "import numpy as np\nfrom a.b import c as d\nx, (y, *z) = 1, (2, 3)\nfor i in range(3):\n    w = i\n" \
+             "def f():\n    inner = 1\nclass K: pass\nwith open('f') as handle: pass\nif (v := 3): pass\n"
+    assert assigned_names(source) == {"np", "d", "x", "y", "z", "i", "w", "f", "K", "handle", "v"}
+    assert assigned_names("x = (") == set()
+
+
+# --------------------------------------------------------------------------------------------
+# The real grader
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.hidden  # the instructor's edition: every TODO solved
+def test_the_instructors_edition_passes_its_visible_checks():
+    from hwtools.grade.checks import BEHAVIOURS_BY_TODO
+
+    count = len(BEHAVIOURS_BY_TODO["2.2.1"])  # the check table decides how many there are
+    lines = check_lines(grade_todo("2.2.1"))
+    assert lines[0] == f"TODO 2.2.1 (sigmoid): all {count} visible checks pass"
+    assert [line.split()[0] for line in lines[1:] if not line.startswith("        ")] == ["pass"] * count
+
+
+def test_an_unknown_todo_is_refused():
+    with pytest.raises(CheckError, match="not a TODO of the handout"):
+        grade_todo("9.9.9")
+
+
+def wrong_solution(name):
+    text = (WRONG / name).read_text()
+    header = dict(line[2:].split(": ", 1) for line in text.splitlines() if line.startswith("# ") and ": " in line[:12])
+    blocks = [block.strip("\n") for block in text.split("# --- block")[1:]]
+    return header["todo"], header["file"], blocks if len(blocks) > 1 else blocks[0]
+
+
+@pytest.fixture(scope="module")
+def wrong_edition(tmp_path_factory):
+    """A student edition with every solution but two wrong ones (and its answer key)."""
+    from hwtools.todos import TODO_BY_ID
+    from instructor.release import build_student_edition
+
+    replace = {}
+    for name in ("sigmoid_wrong_sign.txt", "forward_difference.txt"):
+        todo, file, code = wrong_solution(name)
+        replace[(todo, file)] = code
+    kit = tmp_path_factory.mktemp("wrong") / "kit"
+    build_student_edition(KIT, kit, keep=frozenset(TODO_BY_ID), replace=replace)
+    return kit
+
+
+@pytest.mark.hidden  # needs the instructor's wrong solutions and reference
+@pytest.mark.parametrize("todo", ["2.2.1", "1.2.1"])
+def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_inputs(wrong_edition, todo):
+    from hwtools.grade import Grader
+
+    preview = grade_todo(todo, kit=wrong_edition)  # the student edition: its answer key, visible checks only
+    graded = next(e for e in Grader(KIT).grade(wrong_edition, todos=[todo])["todos"] if e["id"] == todo)
+
+    def visible(entry):
+        return [(c["check"], c["passed"] or c["failed_on"] == "hidden", c.get("visible_failure")) for c in entry["checks"]]
+
+    assert visible(preview) == visible(graded)
+    assert not all(ok for _, ok, _ in visible(preview)), "a wrong solution fails a visible check"
+    lines = check_lines(preview)
+    assert any(line.startswith("  FAIL") for line in lines) and any("expected:" in line for line in lines)
+
+
+def test_an_interrupt_ends_the_graders_subprocess(monkeypatch):
+    started = []
+    real_popen = subprocess.Popen
+
+    class Interrupted(real_popen):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            started.append(self)
+
+        def communicate(self, *args, **kwargs):
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(check_module.subprocess, "Popen", Interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        grade_todo("2.2.1")
+    assert len(started) == 1 and started[0].poll() is not None  # ended, not left running
+
+
+# --------------------------------------------------------------------------------------------
+# Day one in a kernel, and in pytest's report
+# --------------------------------------------------------------------------------------------
+
+DAY_ONE_CELLS = [
+    "import hwtools.notebook\nclass TodoNotDone(NotImplementedError):\n    pass",
+    "def stub():\n    raise TodoNotDone('TODO 1.3.1 is not done yet: eval_params in hwlib/policy_search.py')",
+    "ok = 1\nrun = stub()",
+    "print(run)",
+    "summary = run",
+    "print(summary)",
+    "print(never_defined)",
+    "### BEGIN TODO 2.3.2\nraise TodoNotDone('TODO 2.3.2 is not done yet')\n### END TODO 2.3.2",
+    "print(X_train)",
+]
+
+
+def test_a_name_a_cell_could_not_make_says_which_todo_it_waits_for(tmp_path):
+    import nbformat
+    from nbclient import NotebookClient
+
+    notebook = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(source) for source in DAY_ONE_CELLS])
+    NotebookClient(notebook, timeout=120, allow_errors=True, kernel_name="python3",
+                   resources={"metadata": {"path": str(tmp_path)}}).execute()
+    shown = ["\n".join(out.get("traceback", [])) for cell in notebook.cells for out in cell.outputs if out.output_type == "error"]
+    assert "TODO 1.3.1 is not done yet: `run` is made by a cell above that stopped at TODO 1.3.1." in shown[1]
+    assert shown[1].count("\n") == 1  # two lines, no traceback
+    assert "TODO 1.3.1 is not done yet: `run`" in shown[2]
+    assert "TODO 1.3.1 is not done yet: `summary`" in shown[3]  # a cell that stopped on such a name passes it on
+    assert "NameError" in shown[4] and "never_defined" in shown[4] and "TODO" not in shown[4]  # any other NameError as always
+    assert "TODO 2.3.2 is not done yet: `X_train` is made by your code in the cell of TODO 2.3.2." in shown[6]
+
+
+def test_pytest_names_the_todo_first(tmp_path):
+    (tmp_path / "conftest.py").write_text('pytest_plugins = ("hwtools.pytest_todo",)\n')
+    (tmp_path / "hwlib").mkdir()  # the kit under test: TODO 2.3.1 is still the stub
+    (tmp_path / "hwlib" / "logreg.py").write_text("def fit():\n    ### BEGIN TODO 2.3.1\n    raise TodoNotDone('2.3.1')\n"
+                                                  "    ### END TODO 2.3.1\n")
+    (tmp_path / "test_x.py").write_text(textwrap.dedent("""\
+        import pytest
+
+        class TodoNotDone(NotImplementedError):
+            pass
+
+        def test_untouched():
+            raise TodoNotDone("TODO 1.2.1 is not done yet: scalar_finite_diff in hwlib/finite_diff.py")
+
+        @pytest.mark.todo("2.2.1")
+        def test_wrong():
+            assert 1 == 2, "sigmoid(0) should be 0.5"
+
+        def test_a_notebook_that_stopped():
+            assert False, "the notebook failed: TODO 2.3.1 is not done yet: fit in hwlib/logreg.py"
+
+        def test_says_done_todo_is_not():
+            assert False, "TODO 1.1.1 is not done yet (but its code is there: this failure is kept whole)"
+        """))
+    done = subprocess.run([sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-q", "-o", "addopts=",
+                           "-o", 'markers=todo(id): t', str(tmp_path)], capture_output=True, text=True, cwd=tmp_path,
+                          env={**os.environ, "PYTHONPATH": str(KIT)})
+    out = done.stdout
+    sections = {name: out.split(f"_ {name} _")[1].lstrip("_").strip().splitlines() for name in
+                ("test_untouched", "test_wrong", "test_a_notebook_that_stopped")}
+    assert sections["test_untouched"][0] == "TODO 1.2.1 is not done yet: scalar_finite_diff in hwlib/finite_diff.py"
+    assert "Traceback" not in "\n".join(sections["test_untouched"][:3]) and "raise TodoNotDone" not in out
+    assert sections["test_wrong"][0] == "TODO 2.2.1: test_wrong failed"
+    assert "sigmoid(0) should be 0.5" in out  # the rest of the failure is still there
+    assert sections["test_a_notebook_that_stopped"][0].startswith("TODO 2.3.1 is not done yet: ")
+    assert "this failure is kept whole" in out and "def test_says_done_todo_is_not" in out
+    assert "4 failed" in out and "TODOs not done yet (their code is still the stub): 2.3.1" in out
