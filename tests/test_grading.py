@@ -12,6 +12,7 @@ import base64
 import json
 import os
 import re
+import shutil
 import subprocess
 import zlib
 import sys
@@ -531,3 +532,30 @@ def test_command_line_grades_one_todo_to_json(tmp_path):
     data = json.loads(out.read_text())
     assert [entry["id"] for entry in data["todos"]] == ["2.2.2"] and data["total"]["auto_earned"] == 3
     assert "2.2.2" in result.stdout
+
+
+def test_a_kit_of_some_files_holds_the_kit_modules_they_import(tmp_path):
+    """A TODO checked on some files only (1.3.3: hwlib/settings.py) gets the kit's modules those
+    import, as hwlib/_todo.py once the stubs' module imports TodoNotDone."""
+    shutil.copytree(KIT / "hwlib", tmp_path / "hwlib", ignore=shutil.ignore_patterns("__pycache__"))
+    (tmp_path / "hwlib" / "_todo.py").write_text("class TodoNotDone(NotImplementedError):\n    pass\n")
+    settings = tmp_path / "hwlib" / "settings.py"
+    settings.write_text("from hwlib._todo import TodoNotDone  # noqa: F401\n" + settings.read_text())
+    files = blocks.composite_files(blocks.load_layout(tmp_path), {}, set(), only=checks.SETTINGS_ONLY["1.3.3"])
+    assert set(files) == {"hwlib/__init__.py", "hwlib/settings.py", "hwlib/_todo.py"}
+    assert files["hwlib/__init__.py"] == ""  # a package's own __init__ is left out, as before
+
+
+def test_the_preview_of_a_kit_without_a_todo_s_markers_says_it_is_not_graded(answer_key, layout, tmp_path):
+    """The student edition's preview reads the student's own kit: a TODO whose markers were deleted
+    has no block there, and is "not graded" with the reason (not a KeyError); the others are graded."""
+    key = tmp_path / "key.json"
+    write_answer_key(KIT, key)
+    blocks.write_submission(layout, tmp_path / "kit", others="reference")
+    logreg = tmp_path / "kit" / "hwlib" / "logreg.py"
+    logreg.write_text("\n".join(line for line in logreg.read_text().split("\n")
+                                if not re.match(r"\s*### (BEGIN|END) TODO 2\.2\.1\s*$", line)))
+    result = Grader(None, answer_key=key, time_limit=TIME_LIMIT).grade(tmp_path / "kit", todos=["2.2.1", "2.2.2"])
+    entry = next(entry for entry in result["todos"] if entry["id"] == "2.2.1")
+    assert entry["status"] == "not graded" and "markers '### BEGIN TODO 2.2.1'" in entry["notes"][0], entry
+    assert points(result) == {"2.2.1": 0, "2.2.2": 3}
