@@ -18,7 +18,9 @@ host paths of the kit and the worker.
 
 ``user`` (where bubblewrap cannot create namespaces, as in Docker's default seccomp profile, e.g.
 Gradescope): an unprivileged user of its own per run, no network sockets, a private kit folder
-(``user_sandbox.py`` says what that does and does not hide).
+(``user_sandbox.py`` says what that does and does not hide). The pool's users are for students'
+code: a trusted run (``start(..., trusted=True)``: a reference server, no student code in its kit)
+is launched as ``none`` here, as the grader's own user (``run_kind``).
 
 ``none``: a plain subprocess, with the same limits and messages but no isolation;
 ``Sandbox.isolated`` is then False and ``Sandbox.how`` says why.
