@@ -1,11 +1,25 @@
-"""Grading benchmark: seconds per submission, in the bubblewrap sandbox and without it, 1 and 2 jobs.
+"""Grading benchmark: seconds per submission in bubblewrap, in the user fallback and without a sandbox.
 
-Run from the kit's root:  .venv/bin/python benchmarks/bench_grading.py  [--submissions N] [--quick]
+Run from the kit's root:  .venv/bin/python benchmarks/bench_grading.py  [--submissions N] [--quick] [--baseline REF]
+                          [--isolation bwrap user none] [--jobs 1 2]
 
 Each submission is the reference solution with a comment of its own in every block, so that no
 TODO's kit matches one the grader has run before: every TODO's worker runs, as for a real class
 where no two students write the same code. The first grading of a Grader also computes the
 reference's answers (once per grader, reused for every later submission); it is timed apart.
+
+``--baseline REF`` measures the grader of git revision REF (for example ``09db243``, the grader
+before the reference server) side by side: for each setting, the baseline's grader (exported from
+git into a temporary folder) and this kit's each run in a subprocess of the same Python, both
+warmed up by a first grading, and then grade fresh submissions in turns (baseline, this kit,
+baseline, ...), so that a change of load on a shared machine weighs on both; the table gives both
+medians and their ratio. A baseline without the user fallback (09db243 has none) grades the
+``user`` setting in bubblewrap, its only sandbox: the ratio is then the fallback's cost against
+that grader's isolated time (the bound of issue 17.8).
+
+``user`` (the fallback of containers without namespaces) needs root: the pool's users are
+created as ``setup.sh`` creates them, and a Python they can run is made from the system's Python
+with this one's packages (``user_sandbox.runnable_python``).
 
 Numbers depend on the machine and on what else runs on it; the README gives the ones measured
 on the kit's 2-core machine, with the load at the time.
@@ -14,18 +28,19 @@ on the kit's 2-core machine, with the load at the time.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import statistics
+import subprocess
+import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
 
-from hwtools.grade import Grader, blocks
-
-KIT = Path(__file__).resolve().parents[1]
 
 
-def fresh_submissions(layout, folder, count, tag):
+def fresh_submissions(blocks, layout, folder, count, tag):
     """``count`` kits: every block holds the reference's code plus a comment unique to the kit."""
     reference = layout.reference_bodies()
     kits = []
@@ -36,39 +51,123 @@ def fresh_submissions(layout, folder, count, tag):
     return kits
 
 
-def bench(isolation, jobs, count, layout, folder):
-    grader = Grader(KIT, isolation=isolation, jobs=jobs)
-    kits = fresh_submissions(layout, folder, count + 1, f"{isolation}-{jobs}")
-    start = time.perf_counter()
-    first = grader.grade(kits[0])
-    setup = time.perf_counter() - start
-    assert first["total"]["auto_earned"] == 39, first["total"]
-    times = []
-    for kit in kits[1:]:
+def exported(ref, kit, folder):
+    """The files of git revision ``ref`` of ``kit``, in ``folder`` (the course data is not needed)."""
+    archive = Path(folder) / "baseline.tar"
+    subprocess.run(["git", "-C", str(kit), "archive", "--format=tar", "-o", str(archive), ref], check=True)
+    with tarfile.open(archive) as tar:
+        tar.extractall(Path(folder) / "baseline", filter="data")
+    return Path(folder) / "baseline"
+
+
+class Side:
+    """A grader of the kit at ``kit`` (its own hwtools first on the path) in a subprocess, warmed
+    up; ``grade()`` grades one fresh submission there and returns the seconds it took."""
+
+    def __init__(self, kit, isolation, jobs, python=""):
+        env = dict(os.environ, PYTHONPATH=str(kit))
+        self.process = subprocess.Popen([sys.executable, __file__, "--serve", str(kit), isolation, str(jobs), python],
+                                        env=env, cwd=kit, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.ready = json.loads(self.process.stdout.readline())
+
+    def grade(self):
+        self.process.stdin.write("grade\n")
+        self.process.stdin.flush()
+        return json.loads(self.process.stdout.readline())["seconds"]
+
+    def close(self):
+        self.process.stdin.close()
+        self.process.wait()
+
+
+def serve(kit, isolation, jobs, python):
+    """The subprocess of a Side: one warm-up grading, then one fresh submission per line on stdin.
+    A grader that has no ``isolation="user"`` (before the fallback) grades in bubblewrap."""
+    from hwtools.grade import Grader, blocks  # noqa: PLC0415 - the hwtools of the kit measured (PYTHONPATH)
+
+    try:
+        grader = Grader(kit, isolation=isolation, jobs=jobs, python=python or None)
+    except ValueError:  # no such isolation in this grader: its only sandbox
+        grader = Grader(kit, isolation="bwrap", jobs=jobs)
+    layout = blocks.load_layout(kit)
+    kind = getattr(grader.sandbox, "kind", "bwrap" if grader.sandbox.isolated else "none")
+    if getattr(grader, "pool", None) is not None:
+        grader.pool.idle = 3600.0  # its reference servers stay up while the other side grades, as in a class graded back to back
+    with tempfile.TemporaryDirectory(prefix="bench-grading-") as folder:
+        number = 0
         start = time.perf_counter()
-        result = grader.grade(kit)
-        times.append(time.perf_counter() - start)
+        result = grader.grade(fresh_submissions(blocks, layout, folder, 1, f"warm-{number}")[0])
         assert result["total"]["auto_earned"] == 39, result["total"]
-    return grader.sandbox, setup, times
+        print(json.dumps({"kind": kind, "setup": time.perf_counter() - start}), flush=True)
+        for _ in sys.stdin:
+            number += 1
+            kit_dir = fresh_submissions(blocks, layout, folder, 1, f"next-{number}")[0]
+            start = time.perf_counter()
+            result = grader.grade(kit_dir)
+            seconds = time.perf_counter() - start
+            assert result["total"]["auto_earned"] == 39, result["total"]
+            print(json.dumps({"seconds": seconds}), flush=True)
+    if hasattr(grader, "close"):
+        grader.close()
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--submissions", type=int, default=3, help="timed submissions per setting (default 3)")
+    parser.add_argument("--submissions", type=int, default=5, help="timed submissions per setting (default 5)")
     parser.add_argument("--quick", action="store_true", help="one submission per setting")
+    parser.add_argument("--baseline", metavar="REF", help="also measure the grader of this git revision, side by side")
+    parser.add_argument("--isolation", nargs="+", default=["bwrap", "user", "none"], choices=["bwrap", "user", "none"])
+    parser.add_argument("--jobs", nargs="+", type=int, default=[1], help="worker runs of one submission side by side")
+    parser.add_argument("--serve", nargs=4, metavar=("KIT", "ISOLATION", "JOBS", "PYTHON"), help=argparse.SUPPRESS)
     args = parser.parse_args()
+    if args.serve:
+        serve(Path(args.serve[0]), args.serve[1], int(args.serve[2]), args.serve[3])
+        return
+    kit = Path(__file__).resolve().parents[1]
     count = 1 if args.quick else args.submissions
-    layout = blocks.load_layout(KIT)
     load = os.getloadavg()
     print(f"{os.cpu_count()} CPU(s), load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (a shared machine is noisy)")
-    print(f"{'isolation':<10} {'jobs':>4}  {'first (+reference)':>18}  {'per submission':>16}  {'min':>6}  {'max':>6}")
     with tempfile.TemporaryDirectory(prefix="bench-grading-") as folder:
-        for isolation in ("auto", "none"):
-            for jobs in (1, 2):
-                box, setup, times = bench(isolation, jobs, count, layout, folder)
-                name = "bwrap" if box.isolated else "none"
-                print(f"{name:<10} {jobs:>4}  {setup:>17.1f}s  {statistics.mean(times):>15.1f}s  "
-                      f"{min(times):>5.1f}s  {max(times):>5.1f}s")
+        baseline = exported(args.baseline, kit, folder) if args.baseline else None
+        python = user_python(folder) if "user" in args.isolation else ""
+        header = f"{'isolation':<10} {'jobs':>4}  {'first (+reference)':>18}  {'median':>16}  {'min':>6}  {'max':>6}"
+        print(header + (f"  {'baseline ' + args.baseline:>24}  {'ratio':>6}" if baseline else ""))
+        for jobs in args.jobs:
+            for isolation in args.isolation:
+                bench(kit, baseline, isolation, jobs, python if isolation == "user" else "", count)
+
+
+def user_python(folder):
+    """A Python the fallback's users can run, with this one's packages (the pool's users created)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+    from hwtools.grade import user_sandbox  # noqa: PLC0415
+
+    user_sandbox.create_users()
+    shared = Path(folder) / "user-python"
+    shared.mkdir()
+    for path in (shared, *shared.parents):  # the users must reach it
+        if path == Path("/"):
+            break
+        path.chmod(path.stat().st_mode | 0o711)
+    return user_sandbox.runnable_python(shared / "venv")
+
+
+def bench(kit, baseline, isolation, jobs, python, count):
+    """One line of the table: this kit (and the baseline) grading ``count`` fresh submissions in turns."""
+    sides = [Side(kit, isolation, jobs, python)] + ([Side(baseline, isolation, jobs, python)] if baseline else [])
+    times = [[] for _ in sides]
+    for _ in range(count):
+        for side, kept in zip(sides[::-1], times[::-1]):  # the baseline first, then this kit
+            kept.append(side.grade())
+    for side in sides:
+        side.close()
+    now = times[0]
+    line = (f"{sides[0].ready['kind']:<10} {jobs:>4}  {sides[0].ready['setup']:>17.1f}s  "
+            f"{statistics.median(now):>15.2f}s  {min(now):>5.2f}s  {max(now):>5.2f}s")
+    if baseline:
+        old = statistics.median(times[1])
+        line += f"  {old:>16.2f}s ({sides[1].ready['kind']:<5})  {statistics.median(now) / old:>5.2f}x"
+    print(line, flush=True)
 
 
 if __name__ == "__main__":

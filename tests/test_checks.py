@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from hwtools.grade import TODO_BY_ID, Grader, blocks, checks
-from hwtools.grade.classroom import todo_markdown
+from hwtools.grade.class_feedback import todo_markdown
 from hwtools.grade.feedback import failure_words, render
 from test_grading import full_points, parse_wrong_solution, points
 
@@ -204,7 +204,7 @@ def test_sigmoid_tolerances_see_clipping_and_nan():
 def test_finite_difference_tolerance_takes_another_order_but_no_other_formula():
     rng = np.random.default_rng(1)
     spec = checks._coupled(rng, 5)
-    from hwtools.grade.worker import known_function
+    from hwtools.grade.probes import known_function
 
     f, x, h = known_function(spec), rng.uniform(-1.5, 1.5, 5), np.array([0.01, 0.05, 0.3, 0.8, 0.2])
     eye = np.eye(5)

@@ -8,17 +8,22 @@ grader has already run (the same TODO with the same code) is not run again.
 
 from __future__ import annotations
 
+import base64
 import json
+import os
 import re
+import shutil
 import subprocess
+import zlib
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, served, write_answer_key
 from hwtools.grade.feedback import render
+from cheats import leak_search
 from process_watch import live_processes
 
 KIT = Path(__file__).resolve().parents[1]
@@ -33,7 +38,8 @@ pytestmark = pytest.mark.timeout(900)
 
 @pytest.fixture(scope="module")
 def grader():
-    return Grader(KIT, time_limit=TIME_LIMIT, jobs=2)
+    with Grader(KIT, time_limit=TIME_LIMIT, jobs=2) as shared:
+        yield shared
 
 
 @pytest.fixture(scope="module")
@@ -99,6 +105,8 @@ def parse_wrong_solution(path):
     return todo, mistake, bodies
 
 
+# A wrong formula keeps at most 30% of its TODO's points (issue 15.4), in every TODO: every wrong
+# solution loses at least 70% of its own TODO and nothing elsewhere.
 @pytest.mark.parametrize("path", sorted(WRONG.glob("*.txt")), ids=lambda path: path.stem)
 def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, path):
     todo, mistake, bodies = parse_wrong_solution(path)
@@ -106,6 +114,7 @@ def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, 
     result = grader.grade(tmp_path)
     earned = points(result)
     assert earned[todo] < TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) kept every point of {todo}"
+    assert earned[todo] <= 0.3 * TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) kept {earned[todo]} of {todo}"
     assert {other: value for other, value in earned.items() if other != todo} == \
         {other: value for other, value in full_points().items() if other != todo}
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
@@ -133,7 +142,7 @@ MISTAKES = {
     "unseeded episodes": ("1.3.1", "mean_reward = np.mean([run_policy(policy) for k in range(num_rollouts)])", 4),
     "records the reward before the update": ("1.3.2", "g = lambda p: eval_params(p, num_rollouts_per_eval, seed=eval_seed)\n"
                                              "rewards.append(g(params))\n"
-                                             "params = params + learning_rate * scalar_finite_diff(g, params, fd_step)", 3),
+                                             "params = params + learning_rate * scalar_finite_diff(g, params, fd_step)", 0),
     "a learning rate that does not converge in 7": ("1.3.3", "LEARNING_RATE = 1e-4", 0),
     "sigmoid that gives NaN far out": ("2.2.1", "values = np.exp(z) / (1 + np.exp(z))", 0.5),
     "predict_prob without the sigmoid": ("2.2.2", "X_aug = np.hstack([X, np.ones((len(X), 1))])\n"
@@ -176,6 +185,63 @@ def test_natural_solution_earns_every_point(grader, layout, tmp_path, path):
     assert points(result) == full_points(), render(result)
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
     assert all(check["passed"] for check in entry["checks"]), render(result)
+
+
+# A correct solution of each TODO that calls another TODO's function (each one it could use): the
+# call is answered by the reference server, and the solution earns every point.
+CALLS_ANOTHER_TODO = {
+    ("1.3.1", "1.1.1"): "first_action = policy(np.zeros(4))  # the policy acts: 1.1.1's __call__\n"
+                        "mean_reward = np.mean([run_policy(policy, seed=seed + k) for k in range(num_rollouts)])",
+    ("1.3.2", "1.1.1"): "g = lambda p: eval_params(p, num_rollouts_per_eval, seed=eval_seed)\n"
+                        "params = params + learning_rate * scalar_finite_diff(g, params, fd_step)\n"
+                        "assert CartPoleLinearPolicy(params)(np.zeros(4)) in (0, 1)\n"
+                        "rewards.append(g(params))",
+    ("1.3.2", "1.2.1"): "from hwlib.finite_diff import scalar_finite_diff as central\n"
+                        "g = lambda p: eval_params(p, num_rollouts_per_eval, seed=eval_seed)\n"
+                        "params = params + learning_rate * central(g, params, np.full(4, fd_step))\n"
+                        "rewards.append(g(params))",
+    ("1.3.2", "1.3.1"): "import hwlib\n"
+                        "g = lambda p: hwlib.eval_params(p, num_rollouts=num_rollouts_per_eval, seed=eval_seed)\n"
+                        "params = params + learning_rate * scalar_finite_diff(g, params, fd_step)\n"
+                        "rewards.append(g(params))",
+    ("2.1.1", "2.2.1"): "gradient = features_aug.T @ (labels - sigmoid(features_aug @ weights))",
+    ("2.1.1", "2.2.2"): "model = TwoClassLogisticRegressionClassifier(features_aug.shape[1] - 1)\n"
+                        "model.weights = weights\n"
+                        "gradient = features_aug.T @ (labels - model.predict_prob(features_aug[:, :-1]))",
+    ("2.2.2", "2.2.1"): "probabilities = sigmoid(np.hstack([X, np.ones((len(X), 1))]) @ self.weights)",
+    ("2.2.3", "2.1.1"): "self.weights = self.weights + learning_rate * log_likelihood_gradient(self.weights, X, y)",
+    ("2.2.3", "2.2.1"): "self.weights = self.weights + learning_rate * X_aug.T @ (y - sigmoid(X_aug @ self.weights))",
+    ("2.2.3", "2.2.2"): "self.weights = self.weights + learning_rate * X_aug.T @ (y - self.predict_prob(X))",
+    ("2.3.1", "2.1.1"): "w = self.classifiers[c].weights\n"
+                        "self.classifiers[c].weights = w + learning_rate * log_likelihood_gradient(w, X, (y == c) * 1)",
+    ("2.3.1", "2.2.1"): "labels = (y == c).astype(float)\nw = self.classifiers[c].weights\n"
+                        "X1 = np.hstack([X, np.ones((len(X), 1))])\n"
+                        "self.classifiers[c].weights = w + learning_rate * X1.T @ (labels - sigmoid(X1 @ w))",
+    ("2.3.1", "2.2.2"): "labels = (y == c).astype(float)\nmodel = self.classifiers[c]\n"
+                        "X1 = np.hstack([X, np.ones((len(X), 1))])\n"
+                        "model.weights = model.weights + learning_rate * X1.T @ (labels - model.predict_prob(X))",
+    ("2.3.1", "2.2.3"): "self.classifiers[c].fit(X, (y == c).astype(int), learning_rate, 1)",
+}
+
+
+@pytest.mark.parametrize("todo, other", list(CALLS_ANOTHER_TODO), ids=lambda value: str(value))
+def test_a_correct_solution_that_calls_another_todos_function_earns_every_point(grader, layout, tmp_path, todo, other):
+    blocks.write_submission(layout, tmp_path, {todo: CALLS_ANOTHER_TODO[todo, other]}, others="reference")
+    result = grader.grade(tmp_path)
+    assert points(result) == full_points(), render(result)
+    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
+    assert all(check["passed"] for check in entry["checks"]), render(result)
+
+
+def test_every_todo_has_a_solution_calling_each_earlier_todos_function_it_could_use():
+    """The table above covers, for every graded TODO, each function of an earlier TODO its code
+    could call (a served function whose result is not the TODO's own)."""
+    usable = {"1.3.1": {"1.1.1"}, "1.3.2": {"1.1.1", "1.2.1", "1.3.1"}, "2.1.1": {"2.2.1", "2.2.2"},
+              "2.2.2": {"2.2.1"}, "2.2.3": {"2.1.1", "2.2.1", "2.2.2"}, "2.3.1": {"2.1.1", "2.2.1", "2.2.2", "2.2.3"}}
+    for todo, others in usable.items():
+        assert {other for (t, other) in CALLS_ANOTHER_TODO if t == todo} == others, todo
+        for other in others:  # and each of them is served to that TODO's run
+            assert any(entry.todo == other for entry in served.plan(todo)[0].values()), (todo, other)
 
 
 # --------------------------------------------------------------------------------------------
@@ -271,24 +337,43 @@ def test_there_are_at_least_ten_cheats():
     assert len(CHEAT_FILES) >= 10
 
 
-def worker_processes(settle=3.0):
-    """The processes running the grader's worker that are still alive (zombies excluded), after
-    giving killed ones up to ``settle`` seconds to go."""
-    return live_processes(lambda cmdline: b"worker.py" in cmdline and (b"/grader/" in cmdline or b"hwgrade-kit" in cmdline),
-                          settle)
+def descendants(roots):
+    """``roots`` and every process below them."""
+    parents = {}
+    for entry in Path("/proc").iterdir():
+        try:
+            parents[int(entry.name)] = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+        except (ValueError, OSError, IndexError):
+            continue
+    found, grown = set(roots), True
+    while grown:
+        grown = {pid for pid, parent in parents.items() if parent in found} - found
+        found |= grown
+    return found
+
+
+def worker_processes(grader, settle=3.0):
+    """The processes of this test run running the grader's worker that are still alive (zombies
+    excluded), after giving killed ones up to ``settle`` seconds to go. Only this process's own
+    tree counts (other test runs and graders may share the machine; in bubblewrap a process that
+    leaves its session stays in the sandbox's tree), and not the grader's reference servers,
+    which live on between submissions."""
+    alive = live_processes(lambda cmdline: b"worker.py" in cmdline and (b"/grader/" in cmdline or b"hwgrade-kit" in cmdline),
+                           settle)
+    return (alive & descendants({os.getpid()})) - descendants(grader.pool.process_ids())
 
 
 @pytest.mark.parametrize("path", CHEAT_FILES, ids=lambda path: path.stem)
-def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answer_key):
+def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answer_key, secrets):
     cheat = parse_cheat(path)
     build_cheat(layout, cheat, tmp_path, answer_key)
-    before = worker_processes(settle=0)
+    before = worker_processes(grader, settle=0)
     result = grader.grade(tmp_path)
     assert result["total"]["auto_earned"] == cheat["points"], render(result)
     report = text_of(result)
     for expected in cheat["expect"]:
         assert expected in report, f"the report does not say {expected!r}:\n{render(result)}"
-    assert worker_processes() <= before, "a process of the run outlived it"
+    assert worker_processes(grader) <= before, "a process of the run outlived it"
     if cheat["others"] == "reference":  # the cheat may cost only its own TODO
         lost = [todo for todo, value in points(result).items() if value < TODO_BY_ID[todo].auto]
         assert lost == list(cheat["bodies"]), render(result)
@@ -297,6 +382,47 @@ def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answe
             assert set(entry["first_failure"]) == {"check", "hidden", "input"}
         if entry["id"] in cheat["hardcode"]:  # right on every visible input, wrong on the hidden ones
             assert all(check["failed_on"] == "hidden" for check in entry["checks"]), entry
+    leak_search.assert_nothing_leaks(result, secrets)
+
+
+def test_an_answer_that_would_inflate_is_refused_unread(layout, tmp_path, answer_key):
+    """The zip-bomb cheat, graded in a fresh process: its peak memory stays far below the 300 MB
+    the answer would inflate to (nothing is decompressed, no array is made from a header's shape)."""
+    build_cheat(layout, parse_cheat(CHEATS / "zip_bomb.txt"), tmp_path / "kit", answer_key)
+    code = ("import json, sys; from hwtools.grade import Grader; "
+            f"result = Grader({str(KIT)!r}, time_limit={TIME_LIMIT}).grade({str(tmp_path / 'kit')!r}, todos=['2.2.1']); "
+            "peak = [line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM:')][0]; "
+            "print(json.dumps([result['todos'][0]['status'], int(peak)]))")  # VmHWM: this image's peak (ru_maxrss keeps the parent's)
+    run = subprocess.run([sys.executable, "-c", code], cwd=KIT, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    status, peak_kib = json.loads(run.stdout.strip().splitlines()[-1])
+    assert status == "crashed" and peak_kib < 200 * 1024, (status, peak_kib)
+
+
+# --------------------------------------------------------------------------------------------
+# The leak search: every output, decoded as a cheat would encode it
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def secrets(grader, layout):
+    return leak_search.secrets_of(grader, layout)
+
+
+def test_the_leak_search_finds_what_it_looks_for(grader, secrets):
+    """The search must be able to fail: a reference line and a hidden input, compressed and encoded."""
+    line, (_, _, args) = secrets["lines"][0], grader.cases["1.2.1"].hidden[0]
+    for planted in (base64.b64encode(zlib.compress(line.encode())).decode()[:60],
+                    zlib.compress(repr(args).encode()).hex(),
+                    base64.b64encode(np.asarray(args["x"], dtype=np.float64).tobytes()).decode()):
+        entry = {"id": "2.2.1", "title": "sigmoid", "auto_earned": 0, "auto_possible": 2, "manual_possible": 0,
+                 "manual": "", "code": "", "status": "graded", "checks": [], "first_failure": None,
+                 "notes": [f"warning (not a failure): UserWarning: {planted}"]}
+        fake = {"notes": [], "todos": [entry], "isolated": True,
+                "isolation": "", "submission": "s", "reference": "r", "one_mistake_one_place": True,
+                "total": {"auto_earned": 0, "auto_possible": 39, "manual_possible": 21}}
+        with pytest.raises(AssertionError, match="reached an output"):
+            leak_search.assert_nothing_leaks(fake, secrets)
 
 
 # --------------------------------------------------------------------------------------------
@@ -319,23 +445,42 @@ def test_feedback_shows_visible_failures_and_never_a_hidden_input(grader, layout
         assert line not in report
 
 
-def test_each_todo_runs_with_the_reference_code_of_only_the_todos_its_check_needs(grader, layout):
+def test_no_kit_a_student_run_gets_holds_reference_code_and_the_server_kit_holds_it_all(grader, layout, tmp_path):
     reference = layout.reference_bodies()
     solution_lines = {todo: {line.strip() for body in bodies for line in body
                              if len(line.strip()) > 12 and not line.strip().startswith("#")}
                       for todo, bodies in reference.items()}
+    blocks.write_submission(layout, tmp_path, others="stub")
+    read = blocks.read_submission(tmp_path, layout)
     for todo in checks.GRADED_TODOS:
-        files = blocks.composite_files(layout, {todo: ("pass",) * len(reference[todo])}, set(checks.NEEDS[todo]),
-                                       only=checks.SETTINGS_ONLY.get(todo))
+        files = grader._composite(todo, read, layout)  # what the grader writes for the student's run of todo
+        assert "_hwgrade/runtime.py" in files
         text = "\n".join(files.values())
         for other, lines in solution_lines.items():
             shown = {line for line in lines if line in text}
-            if other in checks.NEEDS[todo]:
-                assert shown == lines, (todo, other)
-            else:
-                assert not shown, f"the kit of {todo} shows the solution of {other}: {shown}"
-        if todo != "1.3.3":  # the chosen learning rate (1.3.3's answer) is never in another TODO's kit
+            assert not shown, f"the kit of {todo} shows the solution of {other}: {shown}"
+        if "hwlib/settings.py" in files and todo != "1.3.3":  # the learning rate (1.3.3's answer) is in no other kit
             assert "LEARNING_RATE = None" in files["hwlib/settings.py"]
+    server = "\n".join(grader.pool.files.values())  # the reference server's kit: every solution but 1.3.3's
+    for other, lines in solution_lines.items():
+        assert (lines <= {line for line in lines if line in server}) == (other != "1.3.3"), other
+
+
+def test_each_check_is_served_the_functions_it_calls_and_none_that_compute_its_own_result():
+    for todo in checks.GRADED_TODOS:
+        allowed, refused = served.plan(todo)
+        for entry in served.SERVED:
+            if entry.name in allowed:
+                assert todo not in entry.uses and entry.todo != todo, (todo, entry.name)
+            else:
+                assert todo in entry.uses or entry.todo == todo, (todo, entry.name)
+            if entry.todo is not None and entry.todo != todo and todo in entry.uses:
+                assert entry.name in refused and f"TODO {todo}" in refused[entry.name]
+        for need in checks.NEEDS[todo]:
+            assert any(entry.todo == need for entry in allowed.values()), (todo, need)
+    assert "log_likelihood_gradient" not in served.plan("2.2.1")[0]  # it computes sigmoid
+    assert "one_vs_rest_fit" not in served.plan("2.2.3")[0] and "run_policy" not in served.plan("1.1.1")[0]
+    assert {"predict_prob", "log_likelihood_gradient", "sigmoid"} <= set(served.plan("2.2.3")[0])
 
 
 def test_report_names_an_unisolated_run_on_its_first_line(tmp_path, layout):
@@ -387,3 +532,30 @@ def test_command_line_grades_one_todo_to_json(tmp_path):
     data = json.loads(out.read_text())
     assert [entry["id"] for entry in data["todos"]] == ["2.2.2"] and data["total"]["auto_earned"] == 3
     assert "2.2.2" in result.stdout
+
+
+def test_a_kit_of_some_files_holds_the_kit_modules_they_import(tmp_path):
+    """A TODO checked on some files only (1.3.3: hwlib/settings.py) gets the kit's modules those
+    import, as hwlib/_todo.py once the stubs' module imports TodoNotDone."""
+    shutil.copytree(KIT / "hwlib", tmp_path / "hwlib", ignore=shutil.ignore_patterns("__pycache__"))
+    (tmp_path / "hwlib" / "_todo.py").write_text("class TodoNotDone(NotImplementedError):\n    pass\n")
+    settings = tmp_path / "hwlib" / "settings.py"
+    settings.write_text("from hwlib._todo import TodoNotDone  # noqa: F401\n" + settings.read_text())
+    files = blocks.composite_files(blocks.load_layout(tmp_path), {}, set(), only=checks.SETTINGS_ONLY["1.3.3"])
+    assert set(files) == {"hwlib/__init__.py", "hwlib/settings.py", "hwlib/_todo.py"}
+    assert files["hwlib/__init__.py"] == ""  # a package's own __init__ is left out, as before
+
+
+def test_the_preview_of_a_kit_without_a_todo_s_markers_says_it_is_not_graded(answer_key, layout, tmp_path):
+    """The student edition's preview reads the student's own kit: a TODO whose markers were deleted
+    has no block there, and is "not graded" with the reason (not a KeyError); the others are graded."""
+    key = tmp_path / "key.json"
+    write_answer_key(KIT, key)
+    blocks.write_submission(layout, tmp_path / "kit", others="reference")
+    logreg = tmp_path / "kit" / "hwlib" / "logreg.py"
+    logreg.write_text("\n".join(line for line in logreg.read_text().split("\n")
+                                if not re.match(r"\s*### (BEGIN|END) TODO 2\.2\.1\s*$", line)))
+    result = Grader(None, answer_key=key, time_limit=TIME_LIMIT).grade(tmp_path / "kit", todos=["2.2.1", "2.2.2"])
+    entry = next(entry for entry in result["todos"] if entry["id"] == "2.2.1")
+    assert entry["status"] == "not graded" and "markers '### BEGIN TODO 2.2.1'" in entry["notes"][0], entry
+    assert points(result) == {"2.2.1": 0, "2.2.2": 3}

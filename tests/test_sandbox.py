@@ -16,13 +16,14 @@ import shutil
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hwtools.grade import sandbox, user_sandbox, worker
+from hwtools.grade import reference, sandbox, user_sandbox, worker
 from hwtools.grade.sandbox import Sandbox
 import containers
 from process_watch import SUBREAPER, live_processes
@@ -34,13 +35,17 @@ pytestmark = pytest.mark.timeout(300)
 
 
 def make_kit(folder, body):
-    """A kit whose hwlib.logreg.sigmoid(z) runs ``body`` (which sets ``values``)."""
+    """A kit whose hwlib.logreg.sigmoid(z) runs ``body`` (which sets ``values``), with the grader's
+    process side (``_hwgrade/``) that every kit the grader runs holds."""
     package = folder / "kit" / "hwlib"
     package.mkdir(parents=True)
     (package / "__init__.py").write_text("")
     code = "import os, sys, time\nimport numpy as np\n\n\ndef sigmoid(z):\n" + textwrap.indent(body, "    ") + \
         "\n    return values\n"
     (package / "logreg.py").write_text(code)
+    for relative, text in reference.runtime_files().items():
+        (folder / "kit" / relative).parent.mkdir(parents=True, exist_ok=True)
+        (folder / "kit" / relative).write_text(text)
     return folder / "kit"
 
 
@@ -394,6 +399,38 @@ def test_killing_the_sandbox_users_spares_a_run_that_another_grader_holds(user, 
     finally:
         held.finish(graceful=False)
     assert not user_sandbox.processes_of(uid)
+
+
+def _uid(pid):
+    with open(f"/proc/{pid}/status") as status:
+        return int(next(line for line in status if line.startswith("Uid:")).split()[1])
+
+
+def test_a_trusted_run_under_the_user_fallback_takes_no_user_of_the_pool(user, tmp_path):
+    """A reference server (``trusted``: no student code) runs as the grader's own user: it never
+    shares a uid with a student's run, and it starts while students' runs hold every pool user (so
+    idle servers cannot starve the pool, nor a run wait for a server that waits for a user)."""
+    pool = {entry.pw_uid for entry in user_sandbox.users()}
+    held = []
+    try:
+        for number in range(len(pool)):  # every user of the pool held by a student's run
+            held.append(user.start(make_kit(tmp_path / f"student{number}", "values = np.array([1.0])")))
+        assert {run._run_folder.uid for run in held} == pool
+        started = []
+        thread = threading.Thread(target=lambda: started.append(user.start(make_kit(tmp_path / "server",
+                                                                                  "values = np.array([2.0])"),
+                                                                         trusted=True)), daemon=True)
+        thread.start()
+        thread.join(timeout=60)
+        assert started, "a trusted run waited for a user of the pool"
+        server = started[0]
+        try:
+            assert server._run_folder is None and _uid(server.process.pid) == os.geteuid() not in pool
+        finally:
+            server.finish(graceful=False)
+    finally:
+        for run in held:
+            run.finish(graceful=False)
 
 
 def test_the_grader_can_put_itself_under_a_memory_limit():

@@ -25,13 +25,20 @@ The result is a JSON-serialisable dict:
   warnings, code outside the blocks, suspicious calls);
 * ``notes``, ``seconds``.
 
-Modules: ``blocks`` (finding the TODO code, composite kits), ``sandbox`` (launching a worker, its
-limits; ``bwrap_sandbox``: bubblewrap; ``user_sandbox`` and ``confine``: the fallback without
-namespaces, a user of its own per run), ``worker`` (runs in the sandbox), ``checks`` (what is
-checked and how), ``grader`` (the trusted side), ``feedback`` (the text report). A class:
-``submissions`` (reading a submission without trusting it), ``classroom`` (running a class),
-``gradebook``, ``class_feedback`` (Markdown), ``progress``, ``safe_text``; Gradescope:
-``gradescope``. This package imports nothing from ``hwlib`` and nothing heavier than numpy.
+Modules: ``blocks`` (finding the TODO code, the kits), ``sandbox`` (launching a worker, its limits;
+``bwrap_sandbox``: bubblewrap; ``user_sandbox`` and ``confine``: the fallback without namespaces, a
+user of its own per run), ``worker`` (the entry point of every sandboxed process) and ``runtime``
+(its loop, as a student's worker or as the reference server), ``probes`` (what a check calls in the
+kit), ``served`` (which other TODOs' functions a run may call), ``channel`` (the message format,
+read strictly), ``broker`` (the grader's side of one run: numbering, schemas, records),
+``reference`` (the reference servers), ``checks`` (what is checked: the table and the cases;
+``cartpole_checks`` and ``logreg_checks``: each problem's inputs and judges; ``verdicts``: how an
+answer is judged and shown), ``judging`` (points and feedback), ``suspects`` (what a block reaches
+for, named in the feedback), ``grader`` (the trusted side), ``answer_key`` (the student edition's
+key), ``feedback`` (the text report). A class: ``submissions`` (reading a submission without trusting
+it), ``classroom`` (running a class), ``gradebook``, ``class_feedback`` (Markdown), ``progress``,
+``safe_text``; Gradescope: ``gradescope``. This package's trusted side imports nothing from
+``hwlib`` and nothing heavier than numpy.
 """
 
 from hwtools.grade.grader import Grader, GradingError, write_answer_key

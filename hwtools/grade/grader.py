@@ -1,50 +1,51 @@
-"""Grade one submission: build a kit per TODO, run the worker on it in the sandbox, judge the answers.
+"""Grade one submission: a kit per TODO with no reference code in it, runs in the sandbox, points from the judges.
 
 This is the trusted side. It imports the standard library, numpy and the grader's own modules;
-never ``hwlib``, never anything from the submission. For each TODO T it builds a *composite* kit:
-the reference kit's ``hwlib`` with T's blocks replaced by the student's code for T, the blocks T's
-check calls (``checks.NEEDS``) kept as the reference solution, and every other block stubbed. So a
-mistake costs points only in the TODO where it was made. The reference's own answers come from
-the same worker on the same composite built with the reference's code for T, in the sandbox too.
+never ``hwlib``, never anything from the submission. For each TODO T it builds a kit holding the
+student's blocks for T and a stub in every other block, and runs T's cases on it in a sandboxed
+worker (``broker.run_cases``). When the student's code calls another TODO's function (or
+``run_policy``), the worker forwards the call and the reference server answers it
+(``reference.py``, ``served.py``): a mistake costs points only in the TODO where it was made,
+and no process that runs a student's code holds any reference solution. The reference's own
+answers (``_reference_values``) and the re-scoring services come from the same server.
 
-Where there is no reference (the student edition), visible checks are judged against the answer
-key the release tool writes (``write_answer_key``), the student's whole kit stands in for the
-composite, and there are no hidden checks.
+Where there is no reference (the student edition's preview), visible checks are judged against
+the answer key the release tool writes (``write_answer_key``), the student's own kit plays the
+server (every other TODO's function is the student's own), and there are no hidden checks: the
+same runs, so the preview gives the instructor's verdict wherever the other TODOs are right.
 """
 
 from __future__ import annotations
 
 import hashlib
 import importlib.util
-import json
 import os
 import sys
 import tempfile
 import threading
 import time
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import numpy as np
-
-from hwtools.grade import blocks, checks
-from hwtools.grade import worker as protocol
+from hwtools.grade import answer_key as keys
+from hwtools.grade import blocks, broker, checks, judging
+from hwtools.grade.answer_key import ANSWER_KEY
+from hwtools.grade.channel import fingerprint
+from hwtools.grade.reference import ReferencePool, ServerFailed, runtime_files
 from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Sandbox
 from hwtools.todos import TODO_BY_ID, TODOS
 
 KIT_ROOT = Path(__file__).resolve().parents[2]
-ANSWER_KEY = Path(__file__).resolve().with_name("answer_key.json")
 HIDDEN_CHECKS = Path("instructor") / "hidden_checks" / "__init__.py"
 SERVICE_TIME_LIMIT = 900.0  # the reference's own runs (re-scoring, the notebook's training run)
-ANSWER_KEY_VERSION = 1
+NOT_SERVED = ("1.3.3",)  # blocks the reference server keeps as stubs: the learning rate is 1.3.3's answer
+__all__ = ["ANSWER_KEY", "KIT_ROOT", "HIDDEN_CHECKS", "Grader", "GradingError", "has_solutions", "read_answer_key",
+           "write_answer_key"]
 
 
 class GradingError(Exception):
     """The grader itself cannot run: no reference, a broken reference kit, a stale answer key."""
-
-
-def _id_key(todo):
-    return tuple(int(part) for part in todo.split("."))
 
 
 def default_python(reference_dir=None):
@@ -75,12 +76,23 @@ def load_hidden_checks(reference_dir):
     return module
 
 
+def read_answer_key(path):
+    try:
+        return keys.read(path)
+    except keys.AnswerKeyError as error:
+        raise GradingError(str(error)) from None
+
+
 def _digest(*parts):
     digest = hashlib.sha256()
     for part in parts:
         digest.update(part if isinstance(part, bytes) else str(part).encode())
         digest.update(b"\0")
     return digest.hexdigest()
+
+
+def _phase(cases):
+    return [(case_id, behaviour.probe, args) for case_id, behaviour, args in cases]
 
 
 class Grader:
@@ -91,7 +103,8 @@ class Grader:
     ``isolation``: "auto", "bwrap" or "none" (see ``Sandbox``). ``time_limit``: seconds of wall
     clock (and CPU) per worker run of a TODO; ``memory_limit``: bytes of address space.
     ``jobs``: worker runs of one submission side by side. Thread-safe: several submissions may be
-    graded at once with one Grader.
+    graded at once with one Grader. ``close()`` (or ``with Grader(...) as grader``) ends its
+    reference servers; idle ones end by themselves after a few seconds.
     """
 
     def __init__(self, reference=None, answer_key=None, python=None, isolation="auto",
@@ -115,12 +128,35 @@ class Grader:
             self.layout = self.reference_bodies = self.hidden = None
         self.cases = {todo: checks.case_set(todo, self.hidden) for todo in checks.GRADED_TODOS}
         if self.key is not None:
-            _check_key_matches(self.key, self.cases)
+            try:
+                keys.check_matches(self.key, self.cases)
+            except keys.AnswerKeyError as error:
+                raise GradingError(str(error)) from None
         self.sandbox = Sandbox(python or default_python(self.reference), isolation, time_limit, memory_limit)
         self.jobs = max(1, int(jobs or min(4, os.cpu_count() or 1)))
         self.service_time_limit = float(service_time_limit)
         self._memo, self._memo_lock = {}, threading.Lock()
-        self._secret_lines = self._reference_lines()
+        self._scrub = judging.Scrubber(self.reference_bodies)
+        self._secret_lines = self._scrub.lines
+        self.pool = None
+        if self.reference is not None:
+            server = {todo: bodies for todo, bodies in self.reference_bodies.items() if todo not in NOT_SERVED}
+            self.pool = ReferencePool(self.sandbox, blocks.composite_files(self.layout, server, set()))
+            self._finalizer = weakref.finalize(self, ReferencePool.close, self.pool)
+
+    def close(self):
+        """End the reference servers (a later ``grade`` starts new ones)."""
+        if self.pool is not None:
+            self.pool.close()
+            self.pool = ReferencePool(self.pool.sandbox, self.pool.files)
+            self._finalizer.detach()
+            self._finalizer = weakref.finalize(self, ReferencePool.close, self.pool)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
 
     # ---- one submission ------------------------------------------------------------------
 
@@ -153,16 +189,21 @@ class Grader:
             read = blocks.Submission(submission, problems={todo: "no hwlib/ folder" for todo in TODO_BY_ID})
         if self.reference is not None:  # without a reference the submission's own files are what runs
             result["notes"].extend(read.notes)
-
+        pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
         graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
-        with ThreadPoolExecutor(max_workers=self.jobs) as pool:
-            runs = dict(zip(graded, pool.map(lambda todo: self._run_todo(todo, read, layout), graded)))
-        needed = []
-        for todo in graded:
-            needed.extend(self._service_requests(todo, runs[todo]))
-        services = self._services(needed, read, layout)
+        try:
+            with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+                runs = dict(zip(graded, executor.map(lambda todo: self._run_todo(todo, read, layout, pool), graded)))
+            needed = [need for todo in graded for need in self._service_requests(todo, runs[todo])]
+            services = self._services(needed, pool)
+        finally:
+            if pool is not None and pool is not self.pool:
+                pool.close()
+        limits = (self.sandbox.time_limit, self.sandbox.memory_limit / 2**20)
         for todo in selected:
-            result["todos"].append(self._judge_todo(todo, runs.get(todo), services, read, layout))
+            result["todos"].append(judging.judge_todo(todo, runs.get(todo), services, self.cases.get(todo),
+                                                      self._expected, self._scrub, limits,
+                                                      judging.seen(todo, read, layout)))
         entries = result["todos"]
         result["total"] = {
             "auto_earned": round(sum(entry["auto_earned"] for entry in entries), 2),
@@ -174,65 +215,90 @@ class Grader:
 
     # ---- running ------------------------------------------------------------------------
 
-    def _composite(self, todo, read, layout):
-        """{path: text} of the kit TODO ``todo`` is checked on, or a string saying why there is none."""
+    def _parsed_bodies(self, todo, read, layout):
+        """The student's blocks for ``todo``, or a string saying why they cannot be used."""
         if todo in read.problems:
             return read.problems[todo]
-        bodies = read.bodies[todo]
+        if todo not in read.bodies:  # the kit it was read with has no block of this TODO
+            return (f"no code for TODO {todo} was found: its markers '### BEGIN TODO {todo}' ... "
+                    f"'### END TODO {todo}' are not in your hwlib/")
         module_level = any(block.module_level for file_blocks in layout.blocks_by_file.values()
                            for block in file_blocks if block.todo == todo)
-        for body in bodies:
+        for body in read.bodies[todo]:
             problem = blocks.check_body(body, module_level)
             if problem:
                 return f"your code for TODO {todo} does not parse ({problem})"
-        only = checks.SETTINGS_ONLY.get(todo)
-        if self.reference is None:  # no reference: the student's own kit, all their blocks
-            return blocks.composite_files(layout, dict(read.bodies), (), only=only)
-        return blocks.composite_files(layout, {todo: bodies}, set(checks.NEEDS[todo]), only=only)
+        return read.bodies[todo]
 
-    def _run_todo(self, todo, read, layout):
-        """{"student": (outcome, results by case id) or a reason string, "reference": the same or None}."""
-        cases = self.cases[todo]
+    def _composite(self, todo, read, layout):
+        """{path: text} of the kit TODO ``todo`` is checked on, or a string saying why there is none:
+        the student's blocks for ``todo``, a stub in every other block, and the grader's runtime."""
+        bodies = self._parsed_bodies(todo, read, layout)
+        if isinstance(bodies, str):
+            return bodies
+        files = blocks.composite_files(layout, {todo: bodies}, set(), only=checks.SETTINGS_ONLY.get(todo))
+        return files | runtime_files()
+
+    def _preview_pool(self, read, layout):
+        """Without a reference: a server on the student's own kit (each parsed block but 1.3.3's)."""
+        if layout is None:
+            return None
+        own = {}
+        for todo in read.bodies:
+            bodies = self._parsed_bodies(todo, read, layout)
+            if todo not in NOT_SERVED and not isinstance(bodies, str):
+                own[todo] = bodies
+        return ReferencePool(self.sandbox, blocks.composite_files(layout, own, set()), idle=1.0, trusted=False)
+
+    def _run_todo(self, todo, read, layout, pool):
+        """{"student": (Outcome, results by case id) or a reason string, "reference": {case id: values} or None}."""
         files = self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
-        student = self._run(files, cases.requests()) if isinstance(files, dict) else files
-        reference = None
-        if self.reference is not None and any(b.exact for b in checks.BEHAVIOURS_BY_TODO[todo]):
-            reference_files = blocks.composite_files(self.layout, {todo: self.reference_bodies[todo]},
-                                                     set(checks.NEEDS[todo]), only=checks.SETTINGS_ONLY.get(todo))
-            reference = self._run(reference_files, cases.requests())
-            if reference[0].status != "ok" or any(r["status"] != "ok" for r in reference[1].values()):
-                bad = next((r for r in reference[1].values() if r["status"] != "ok"), None)
-                raise GradingError(f"the reference solution of TODO {todo} fails its own checks: "
-                                   f"{reference[0].status} {reference[0].detail} {bad['error'] if bad else ''}")
-        return {"student": student, "reference": reference, "files": files if isinstance(files, dict) else None}
+        student = self._run(todo, files, pool) if isinstance(files, dict) else files
+        reference = self._reference_values(todo) if self.reference is not None else None
+        return {"student": student, "reference": reference}
 
-    def _run(self, files, requests, time_limit=None):
-        key = _digest(blocks.files_digest(files), *[protocol.fingerprint(request) for request in requests], time_limit)
-        return self._memoized(key, lambda: self._run_now(files, requests, time_limit))
+    def _run(self, todo, files, pool):
+        cases = self.cases[todo]
+        visible, hidden = _phase(cases.visible), _phase(cases.hidden)
+        key = _digest(blocks.files_digest(files), pool.digest if pool else "", todo,
+                      *[fingerprint({"id": case_id, "args": args}) for case_id, _, args in visible + hidden],
+                      len(visible), self.sandbox.time_limit)
+        return self._memoized(key, lambda: self._run_now(todo, files, visible, hidden, pool))
 
-    def _run_now(self, files, requests, time_limit):
+    def _run_now(self, todo, files, visible, hidden, pool):
         with tempfile.TemporaryDirectory(prefix="hwgrade-kit-") as scratch:
             kit = blocks.write_files(files, Path(scratch) / "kit")
             try:
-                outcome = self.sandbox.run(kit, requests, time_limit)
+                return broker.run_cases(self.sandbox.start(kit), todo, visible, hidden, pool)
             finally:
                 for path in Path(scratch).rglob("*"):
                     path.chmod(0o700)
-        results = {}
-        for answer in outcome.answers:
-            for item in answer["results"]:
-                if isinstance(item, dict) and isinstance(item.get("id"), str):
-                    results.setdefault(item["id"], _clean_result(item))
-        return outcome, results
+
+    def _reference_values(self, todo):
+        """{case id: the reference's values} for every exact case of ``todo`` (memoized per grader)."""
+        def compute():
+            values = {}
+            for case_id, behaviour, args in self.cases[todo].visible + self.cases[todo].hidden:
+                if not behaviour.exact:
+                    continue
+                try:
+                    result = self.pool.probe(behaviour.probe, args, self.service_time_limit)
+                except ServerFailed as error:
+                    raise GradingError(f"the reference server failed on TODO {todo}'s check {case_id}: {error}") from None
+                if result["status"] != "ok":
+                    raise GradingError(f"the reference solution of TODO {todo} fails its own check {case_id}: "
+                                       f"{result['error']}")
+                values[case_id] = result["values"]
+            return values
+
+        return self._memoized(("reference", todo), compute)
 
     def _memoized(self, key, compute):
         with self._memo_lock:
             entry = self._memo.get(key)
-            if entry is None:
+            owner = entry is None
+            if owner:
                 entry = self._memo[key] = {"event": threading.Event(), "value": None}
-                owner = True
-            else:
-                owner = False
         if owner:
             try:
                 entry["value"] = compute()
@@ -255,233 +321,50 @@ class Grader:
             return []
         outcome, results = student
         needed = []
-        for case_id, behaviour, args in self.cases[todo].visible + self.cases[todo].hidden:
+        for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
             if behaviour.services is None:
                 continue
-            result = results.get(case_id) or _missing(outcome)
-            needed.extend(behaviour.services(args, result))
+            for case_id, case_behaviour, args in self.cases[todo].visible + self.cases[todo].hidden:
+                if case_behaviour is checks.cases_of(behaviour):
+                    needed.extend(behaviour.services(args, results.get(case_id) or broker.missing(outcome)))
         return needed
 
-    def _service_files(self, read, layout):
-        if self.reference is not None:
-            return blocks.composite_files(self.layout, dict(self.reference_bodies), set())
-        return blocks.composite_files(layout, dict(read.bodies), ()) if layout is not None else None
-
-    def _services(self, needed, read, layout):
+    def _services(self, needed, pool):
         """{service key: result} for every (probe, args) in ``needed``, each run once per Grader."""
-        answers, missing = {}, []
+        answers = {}
         for probe, args in needed:
-            key = _digest(probe, protocol.fingerprint({"args": args}))
-            with self._memo_lock:
-                cached = self._memo.get(("service", key))
-            if cached is not None:
-                answers[key] = cached
-            elif key not in {k for k, _, _ in missing}:
-                missing.append((key, probe, args))
-        if missing:
-            files = self._service_files(read, layout)
-            request = {"cases": [{"id": key, "probe": probe, "args": args} for key, probe, args in missing]}
-            if files is None:
-                outcome, results = None, {}
-            else:
-                outcome, results = self._run_now(files, [request], self.service_time_limit)
-            for key, _, _ in missing:
-                result = results.get(key) or _missing(outcome)
-                answers[key] = result
-                if result["status"] == "ok" and self.reference is not None:
-                    with self._memo_lock:
-                        self._memo[("service", key)] = result
+            key = judging.service_key(probe, args)
+            if key in answers:
+                continue
+            if pool is None:
+                answers[key] = {"status": "error", "error": "not run", "warnings": [], "values": {}}
+                continue
+
+            try:
+                answers[key] = self._memoized(("service", pool.digest, key),
+                                              lambda probe=probe, args=args: pool.probe(probe, args, self.service_time_limit))
+            except ServerFailed as error:
+                answers[key] = {"status": "error", "error": str(error), "warnings": [], "values": {}}
         return answers
-
-    # ---- judging and feedback -------------------------------------------------------------
-
-    def _judge_todo(self, todo, run, services, read, layout):
-        info = TODO_BY_ID[todo]
-        entry = {"id": todo, "title": info.title, "auto_earned": 0.0, "auto_possible": info.auto,
-                 "manual_possible": info.manual, "manual": info.manual_what, "code": info.code,
-                 "status": "graded", "checks": [], "first_failure": None, "notes": []}
-        if run is None:
-            entry["status"] = "graded by hand" if info.manual else "no checks"
-            return entry
-        student = run["student"]
-        if isinstance(student, str):
-            entry["status"] = "not graded"
-            entry["notes"].append(student)
-            outcome, results = None, {}
-        else:
-            outcome, results = student
-            if outcome.status != "ok":
-                entry["status"] = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed"}[outcome.status]
-                entry["notes"].append(f"the run of your code stopped: {outcome.detail} "
-                                      f"(after {outcome.seconds:.1f} s; time limit {self.sandbox.time_limit:.0f} s, "
-                                      f"memory limit {self.sandbox.memory_limit // 2**20} MiB)")
-        reference = run["reference"][1] if run["reference"] else {}
-        earned = 0.0
-        warnings = []
-        for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
-            verdicts = []
-            for visible, phase in ((True, self.cases[todo].visible), (False, self.cases[todo].hidden)):
-                for case_id, case_behaviour, args in phase:
-                    if case_behaviour is not behaviour:
-                        continue
-                    result = results.get(case_id) or _missing(outcome, isinstance(student, str) and student)
-                    if visible:
-                        warnings.extend(result.get("warnings", []))
-                    expected = self._expected(case_id, behaviour, reference)
-                    if behaviour.exact and expected is None:
-                        continue  # a hidden case with only an answer key: not checked here
-                    wanted = behaviour.services(args, result) if behaviour.services else []
-                    answers = [services.get(_digest(probe, protocol.fingerprint({"args": a}))) for probe, a in wanted]
-                    try:
-                        verdict = behaviour.judge(args, result, expected, answers)
-                    except Exception as error:  # noqa: BLE001 - malformed values from the worker
-                        verdict = checks.Verdict(False, "", f"unexpected values ({type(error).__name__}: {error})")
-                    verdicts.append((visible, args, verdict))
-            passed = bool(verdicts) and all(verdict.passed for _, _, verdict in verdicts)
-            failed_on = None if passed else ("visible" if any(v and not d.passed for v, _, d in verdicts) else "hidden")
-            earned += behaviour.points if passed else 0.0
-            # The first visible input this check fails on, shown in full (the notebook's check cells show it per check).
-            first = next(((args, verdict) for v, args, verdict in verdicts if v and not verdict.passed), None)
-            visible_failure = None if first is None else {
-                "input": self._scrub(checks.show(first[0])), "expected": self._scrub(first[1].expected),
-                "actual": self._scrub(first[1].actual)}
-            if visible_failure is not None:  # checks' words: where they differ, and the tolerance
-                visible_failure.update({name: self._scrub(getattr(first[1], name))
-                                        for name in ("difference", "tolerance") if getattr(first[1], name)})
-            entry["checks"].append({
-                "check": behaviour.description, "points": behaviour.points, "passed": passed, "failed_on": failed_on,
-                "visible_inputs": sum(v for v, _, _ in verdicts), "hidden_inputs": sum(not v for v, _, _ in verdicts),
-                "visible_failure": visible_failure})
-            if entry["first_failure"] is None and not passed:
-                if visible_failure is not None:
-                    entry["first_failure"] = {"check": behaviour.description, "hidden": False, **visible_failure}
-                else:
-                    entry["first_failure"] = {"check": behaviour.description, "hidden": True,
-                                              "input": "a hidden input (not shown)"}
-        entry["auto_earned"] = round(min(earned, info.auto), 2)
-        entry["notes"].extend(_seen(todo, read, layout))
-        for warning in dict.fromkeys(warnings):
-            entry["notes"].append(f"warning (not a failure): {self._scrub(warning)}")
-        return entry
 
     def _expected(self, case_id, behaviour, reference):
         if not behaviour.exact:
             return None
         if self.key is not None:
             return self.key["expected"].get(case_id)
-        result = reference.get(case_id)
-        return result["values"] if result else None
-
-    def _reference_lines(self):
-        """Lines of the reference's solutions, to keep them out of anything shown to a student."""
-        if self.reference_bodies is None:
-            return ()
-        lines = set()
-        for bodies in self.reference_bodies.values():
-            for body in bodies:
-                for line in body:
-                    stripped = line.strip()
-                    if len(stripped) >= 12 and not stripped.startswith("#"):
-                        lines.add(stripped)
-        return tuple(sorted(lines))
-
-    def _scrub(self, text):
-        text = str(text)
-        if any(line in text for line in self._secret_lines):
-            return "(not shown: it contains the reference solution's code)"
-        return text
-
-
-def _seen(todo, read, layout):
-    """A note naming what the student's code for ``todo`` reaches for that a solution does not need."""
-    if todo not in read.bodies or layout is None:
-        return []
-    module_level = any(block.module_level for file_blocks in layout.blocks_by_file.values()
-                       for block in file_blocks if block.todo == todo)
-    seen = sorted({name for body in read.bodies[todo] for name in blocks.scan_body(body, module_level)})
-    if not seen:
-        return []
-    return [f"seen in your code for {todo}: {', '.join(seen)}. None of it can change a grade: your code runs "
-            "in a sandbox and only the values it returns are compared, by the grader, with the reference's"]
-
-
-def _missing(outcome, reason=None):
-    if reason:
-        return {"status": "error", "error": reason, "warnings": [], "values": {}}
-    if outcome is None:
-        return {"status": "error", "error": "not run", "warnings": [], "values": {}}
-    why = outcome.detail if outcome.status != "ok" else "no answer"
-    return {"status": "error", "error": f"not answered: {why}", "warnings": [], "values": {}}
-
-
-def _clean_result(item):
-    values = item.get("values") if isinstance(item.get("values"), dict) else {}
-    clean = {}
-    for name, value in values.items():
-        array = np.asarray(value)
-        if isinstance(name, str) and array.dtype.kind in "biuf":
-            clean[name] = array
-    status = item.get("status") if item.get("status") in ("ok", "error") else "error"
-    return {"status": status, "error": str(item.get("error", ""))[:protocol.MAX_TEXT],
-            "warnings": [str(w)[:protocol.MAX_TEXT] for w in (item.get("warnings") or [])[:3]] if
-            isinstance(item.get("warnings"), list) else [], "values": clean}
-
-
-# --------------------------------------------------------------------------------------------
-# The answer key of the student edition
-# --------------------------------------------------------------------------------------------
-
-
-def _encode_array(array):
-    array = np.asarray(array)
-    return {"dtype": str(array.dtype), "shape": list(array.shape), "data": array.ravel().tolist()}
-
-
-def _decode_array(data):
-    return np.array(data["data"], dtype=data["dtype"]).reshape(data["shape"])
-
-
-def _visible_digest(cases):
-    return _digest(*[protocol.fingerprint({"id": case_id, "args": args})
-                     for todo in sorted(cases) for case_id, _, args in cases[todo].visible])
+        return reference.get(case_id)
 
 
 def write_answer_key(reference_kit, out_path, python=None, isolation="auto"):
     """Write the answer key of the student edition: the reference's values for the VISIBLE
     inputs of the exact checks (nothing about hidden checks), as JSON at ``out_path``."""
-    grader = Grader(reference_kit, python=python, isolation=isolation)
-    expected = {}
-    for todo in checks.GRADED_TODOS:
-        cases = checks.CaseSet(todo, visible=grader.cases[todo].visible)
-        if not any(behaviour.exact for _, behaviour, _ in cases.visible):
-            continue
-        files = blocks.composite_files(grader.layout, {todo: grader.reference_bodies[todo]}, set(checks.NEEDS[todo]),
-                                       only=checks.SETTINGS_ONLY.get(todo))
-        outcome, results = grader._run(files, cases.requests())
-        for case_id, behaviour, _ in cases.visible:
-            if behaviour.exact:
-                result = results.get(case_id)
-                if result is None or result["status"] != "ok":
-                    raise GradingError(f"the reference fails visible check {case_id}: "
-                                       f"{result['error'] if result else outcome.detail}")
-                expected[case_id] = {name: _encode_array(value) for name, value in result["values"].items()}
-    key = {"version": ANSWER_KEY_VERSION, "visible_cases": _visible_digest(grader.cases), "expected": expected}
-    out_path = Path(out_path)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    out_path.write_text(json.dumps(key, sort_keys=True, separators=(",", ":")) + "\n", encoding="utf-8")
-    return out_path
-
-
-def read_answer_key(path):
-    data = json.loads(Path(path).read_text(encoding="utf-8"))
-    if data.get("version") != ANSWER_KEY_VERSION:
-        raise GradingError(f"{path}: answer key version {data.get('version')}, this grader reads {ANSWER_KEY_VERSION}")
-    data["expected"] = {case_id: {name: _decode_array(value) for name, value in values.items()}
-                        for case_id, values in data["expected"].items()}
-    return data
-
-
-def _check_key_matches(key, cases):
-    if key.get("visible_cases") != _visible_digest(cases):
-        raise GradingError("the answer key was written for other visible checks than this grader's: "
-                           "rebuild the student edition (python -m instructor.release student OUT)")
+    with Grader(reference_kit, python=python, isolation=isolation) as grader:
+        expected = {}
+        for todo in checks.GRADED_TODOS:
+            for case_id, behaviour, args in grader.cases[todo].visible:
+                if behaviour.exact:
+                    result = grader.pool.probe(behaviour.probe, args, grader.service_time_limit)
+                    if result["status"] != "ok":
+                        raise GradingError(f"the reference fails visible check {case_id}: {result['error']}")
+                    expected[case_id] = result["values"]
+        return keys.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path)

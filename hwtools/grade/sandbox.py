@@ -18,7 +18,9 @@ host paths of the kit and the worker.
 
 ``user`` (where bubblewrap cannot create namespaces, as in Docker's default seccomp profile, e.g.
 Gradescope): an unprivileged user of its own per run, no network sockets, a private kit folder
-(``user_sandbox.py`` says what that does and does not hide).
+(``user_sandbox.py`` says what that does and does not hide). The pool's users are for students'
+code: a trusted run (``start(..., trusted=True)``: a reference server, no student code in its kit)
+is launched as ``none`` here, as the grader's own user (``run_kind``).
 
 ``none``: a plain subprocess, with the same limits and messages but no isolation;
 ``Sandbox.isolated`` is then False and ``Sandbox.how`` says why.
@@ -133,58 +135,65 @@ class Sandbox:
         self.time_limit = float(time_limit)
         self.memory_limit = int(memory_limit)
 
-    def limits(self, time_limit):
+    def run_kind(self, trusted=False):
+        """How a run is launched: ``kind``, except that a trusted run (a reference server: no student
+        code in it) under the user fallback is a plain subprocess of the grader's own user, so that
+        it never shares a uid with a student's run and takes no user of the pool."""
+        return "none" if trusted and self.kind == "user" else self.kind
+
+    def limits(self, time_limit, kind=None):
         """prlimit's options and the worker's own limit arguments for a run of CPU limit ``time_limit``."""
         cpu = max(1, int(time_limit + 0.999))
         options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}"]
-        if self.kind == "user":
+        if (kind or self.kind) == "user":
             from hwtools.grade.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
 
             options.append(f"--nproc={MAX_PROCESSES}")
         return options, [str(cpu), str(self.memory_limit)]
 
-    def command(self, kit_dir, time_limit, run_folder=None):
-        """The command line of one run (``run_folder``: the user fallback's private folder) and the
-        options bubblewrap reads from a pipe (None for the other kinds)."""
-        options, limits = self.limits(time_limit)
+    def command(self, kit_dir, time_limit, run_folder=None, kind=None):
+        """The command line of one run (``run_folder``: the user fallback's private folder; ``kind``:
+        ``run_kind``'s, default ``self.kind``) and the options bubblewrap reads from a pipe (None for
+        the other kinds)."""
+        kind = kind or self.kind
+        options, limits = self.limits(time_limit, kind)
         prlimit = [shutil.which("prlimit"), *options, "--"] if shutil.which("prlimit") else []
-        if self.kind == "bwrap":
+        if kind == "bwrap":
             return (prlimit + [shutil.which("bwrap"), "--args", "{fd}", "--", os.path.abspath(self.python), "-B", "-s",
                                "/grader/worker.py", "/kit"] + limits, bwrap_options(self.python, kit_dir))
-        if self.kind == "user":
+        if kind == "user":
             return prlimit + run_folder.command(self.python) + limits, None
         return prlimit + [self.python, "-B", "-s", str(WORKER), str(kit_dir)] + limits, None
 
-    def start(self, kit_dir, time_limit=None):
+    def start(self, kit_dir, time_limit=None, trusted=False):
         """Start one worker on ``kit_dir``: a ``WorkerProcess`` to talk to (``send``/``receive``) and
         to end (``finish``, which also ends every process it started). Launching and limits live
-        here; what the messages say is the caller's business."""
-        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit))
+        here; what the messages say is the caller's business. ``trusted``: the kit holds no student
+        code (a reference server, ``run_kind``)."""
+        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit), trusted)
 
     def run(self, kit_dir, requests, time_limit=None):
-        """Send ``requests`` (each ``{"cases": [...]}``) one after the other to a worker on
-        ``kit_dir``; the next is sent only when the previous one is answered. Returns a RunOutcome."""
-        worker = self.start(kit_dir, time_limit)
-        outcome = RunOutcome()
-        try:
-            for request in requests:
-                worker.send(request)
-                answer = worker.receive()
-                if isinstance(answer, str):
-                    outcome.status, outcome.detail = answer.split(":", 1)
-                    break
-                if not isinstance(answer.get("results"), list):
-                    outcome.status, outcome.detail = "garbled", "an answer without results"
-                    break
-                outcome.answers.append(answer)
-            else:
-                worker.send({"op": "exit"})
-        except (BrokenPipeError, OSError):
-            outcome.status, outcome.detail = "ended", "the worker stopped reading its requests"
-        finally:
-            outcome.exit_code, outcome.stderr_tail, outcome.seconds = worker.finish(graceful=outcome.status == "ok")
-        if outcome.status == "ended":
-            outcome.detail = _ended_detail(outcome.exit_code, outcome.detail)
+        """Run the cases of ``requests`` (each ``{"cases": [{id, probe, args}, ...]}``) on a worker on
+        ``kit_dir``, one by one, with the grader's protocol (``broker.run_cases``; no function is
+        served); the grader's runtime is copied into the kit if it is not there. Returns a RunOutcome
+        whose ``answers[i]["results"]`` answer ``requests[i]``. For tests: the grader drives its runs
+        itself (``grader.py``)."""
+        from hwtools.grade import broker, reference  # noqa: PLC0415 - the loop is the broker's; it does not import this module
+
+        for relative, text in reference.runtime_files().items():
+            target = Path(kit_dir) / relative
+            if not target.exists():
+                target.parent.mkdir(parents=True, exist_ok=True)
+                target.write_text(text, encoding="utf-8")
+        cases = [(case["id"], case["probe"], case["args"]) for request in requests for case in request["cases"]]
+        ran, results = broker.run_cases(self.start(kit_dir, time_limit), None, cases, [], None)
+        outcome = RunOutcome(status=ran.status, detail=ran.detail, stderr_tail=ran.stderr_tail, seconds=ran.seconds,
+                             exit_code=ran.exit_code)
+        for request in requests:
+            answered = [dict(results[case["id"]], id=case["id"]) for case in request["cases"] if case["id"] in results]
+            if len(answered) < len(request["cases"]):
+                break
+            outcome.answers.append({"results": answered})
         return outcome
 
 
@@ -193,8 +202,8 @@ class WorkerProcess:
     both npz messages (``worker.py``); its error stream goes to a file. ``deadline`` (monotonic
     seconds, the wall-clock backstop) ends it at the latest."""
 
-    def __init__(self, sandbox, kit_dir, time_limit):
-        self.sandbox, self.time_limit = sandbox, time_limit
+    def __init__(self, sandbox, kit_dir, time_limit, trusted=False):
+        self.sandbox, self.time_limit, self.kind = sandbox, time_limit, sandbox.run_kind(trusted)
         self.started = time.monotonic()
         self.deadline = self.started + wall_limit(time_limit)
         self._killed = False
@@ -203,16 +212,16 @@ class WorkerProcess:
         self._run_folder = None
         env, cwd, fds = {}, self._scratch.name, ()
         try:
-            if sandbox.kind == "user":
+            if self.kind == "user":
                 from hwtools.grade.user_sandbox import RunFolder  # noqa: PLC0415
 
                 self._run_folder = RunFolder(kit_dir, WORKER)
                 env, cwd = worker_env(str(self._run_folder.home)), str(self._run_folder.home)
-            elif sandbox.kind == "none":
+            elif self.kind == "none":
                 home = Path(self._scratch.name) / "home"
                 home.mkdir()
                 env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
-            command, options = sandbox.command(kit_dir, time_limit, self._run_folder)
+            command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind)
             if options is not None:
                 fds = (options_pipe(options),)
                 command = [part.replace("{fd}", str(fds[0])) for part in command]
@@ -237,7 +246,7 @@ class WorkerProcess:
         deadline = self.deadline if deadline is None else min(deadline, self.deadline)
         answer = _read_answer(self.process.stdout.fileno(), deadline)
         if answer == "ended:" and self._cpu_limit_reached():
-            return f"timeout:the CPU-time limit of {self.sandbox.limits(self.time_limit)[1][0]} s was reached"
+            return f"timeout:the CPU-time limit of {self.sandbox.limits(self.time_limit, self.kind)[1][0]} s was reached"
         if isinstance(answer, str) and answer.startswith("timeout:"):
             return f"timeout:the wall-clock limit of {wall_limit(self.time_limit):.0f} s was reached (the code waited)"
         return answer
@@ -256,7 +265,7 @@ class WorkerProcess:
         ``graceful``: give it until the deadline to exit on its own (it was told to), else kill now."""
         try:
             code = _finish(self, self.deadline if graceful else time.monotonic())
-            if self.sandbox.kind == "none":
+            if self.kind == "none":
                 _kill_strays(self._token)
             if self._run_folder is not None:
                 self._run_folder.end()
@@ -357,18 +366,3 @@ def _kill_strays(token, rounds=5):
         if not killed:
             return
         time.sleep(0.05)
-
-
-def _ended_detail(code, detail):
-    if detail:
-        return detail
-    if code is None:
-        return "the worker ended before answering"
-    if code > 128 and code - 128 in signal.Signals._value2member_map_:  # bubblewrap passes a signal on as 128 + it
-        code = 128 - code
-    if code < 0:
-        name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
-        why = {"SIGXCPU": " (the CPU-time limit)", "SIGKILL": " (killed: a limit was reached)",
-               "SIGXFSZ": " (the file-size limit: too much output?)"}.get(name, "")
-        return f"the worker was ended by {name}{why} before answering"
-    return f"the worker ended with exit code {code} before answering (sys.exit or os._exit in the code?)"

@@ -1,0 +1,67 @@
+"""The student edition's answer key: the reference's values for the VISIBLE inputs of the exact checks.
+
+The release tool writes it (``grader.write_answer_key``) into the student edition, where
+``python -m hwtools.grade`` judges a student's own kit against it (the preview): it holds nothing
+about hidden inputs and no code. JSON; arrays as {dtype, shape, data}.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from hwtools.grade.channel import fingerprint
+
+ANSWER_KEY = Path(__file__).resolve().with_name("answer_key.json")
+ANSWER_KEY_VERSION = 1
+
+
+class AnswerKeyError(Exception):
+    """An answer key that does not fit this grader (a GradingError for the caller)."""
+
+
+def _encode_array(array):
+    array = np.asarray(array)
+    return {"dtype": str(array.dtype), "shape": list(array.shape), "data": array.ravel().tolist()}
+
+
+def _decode_array(data):
+    return np.array(data["data"], dtype=data["dtype"]).reshape(data["shape"])
+
+
+def visible_digest(cases):
+    """A digest of every visible case of ``cases`` ({todo: CaseSet}): the key fits only these."""
+    digest = hashlib.sha256()
+    for todo in sorted(cases):
+        for case_id, _, args in cases[todo].visible:
+            digest.update(fingerprint({"id": case_id, "args": args}).encode() + b"\0")
+    return digest.hexdigest()
+
+
+def write(expected, cases, out_path):
+    """Write the key: ``expected`` {case id: {name: array}} of visible exact cases."""
+    key = {"version": ANSWER_KEY_VERSION, "visible_cases": visible_digest(cases),
+           "expected": {case_id: {name: _encode_array(value) for name, value in values.items()}
+                        for case_id, values in expected.items()}}
+    out_path = Path(out_path)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    out_path.write_text(json.dumps(key, sort_keys=True, separators=(",", ":")) + "\n", encoding="utf-8")
+    return out_path
+
+
+def read(path):
+    data = json.loads(Path(path).read_text(encoding="utf-8"))
+    if data.get("version") != ANSWER_KEY_VERSION:
+        raise AnswerKeyError(f"{path}: answer key version {data.get('version')}, this grader reads {ANSWER_KEY_VERSION}")
+    data["expected"] = {case_id: {name: _decode_array(value) for name, value in values.items()}
+                        for case_id, values in data["expected"].items()}
+    return data
+
+
+def check_matches(key, cases):
+    if key.get("visible_cases") != visible_digest(cases):
+        raise AnswerKeyError("the answer key was written for other visible checks than this grader's: "
+                             "rebuild the student edition (python -m instructor.release student OUT)")

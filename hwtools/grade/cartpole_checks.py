@@ -1,0 +1,369 @@
+"""The checks of problem 1 (CartPole): the inputs each behaviour of 1.1.1-1.3.3 is tried on, and its judges.
+
+``checks.py`` puts them in its table (``BEHAVIOURS``). The 1.3.x judges read only the grader's own
+records of the episodes and evaluations it answered (``broker.py``), never what the student's
+process says about them. Standard library and numpy only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hwtools.grade.probes import training_objective
+from hwtools.grade.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, exact, show
+
+
+# --------------------------------------------------------------------------------------------
+# 1.1.1 the linear policy
+# --------------------------------------------------------------------------------------------
+
+
+def _integer_rows(rng, want):
+    """Rows (params, obs) of small whole numbers whose score params . obs is exactly each sign in
+    ``want`` ({sign: count}): exact in any order of summation, so a score of 0 is a real tie."""
+    rows, want = [], dict(want)
+    while any(want.values()):
+        params = rng.integers(-3, 4, size=4).astype(np.float64)
+        obs = rng.integers(-3, 4, size=4).astype(np.float64)
+        sign = int(np.sign(params @ obs))
+        if want.get(sign):
+            want[sign] -= 1
+            rows.append((params, obs))
+    return rows
+
+
+def make_policy_states(rng, variant):
+    """Random parameters and states (pole angles as small as the pole's), and at random places among
+    them four scores of exactly 0 (the tie of equation (1): action 0) and two just above and below."""
+    count = 30
+    params = rng.normal(size=(count, 4))
+    obs = rng.normal(size=(count, 4)) * np.array([1.0, 1.0, 0.1, 1.0])
+    rows = [(p, o) for p, o in zip(params, obs)] + _integer_rows(rng, {0: 4, 1: 2, -1: 2})
+    order = rng.permutation(len(rows))
+    return {"params": np.array([rows[i][0] for i in order]), "obs": np.array([rows[i][1] for i in order])}
+
+
+def _policy_row(args, index):
+    (row,) = index
+    params, obs = np.asarray(args["params"][row]), np.asarray(args["obs"][row])
+    return f"row {row}: params {show(params)}, obs {show(obs)}, params . obs = {_number_text(params @ obs)}"
+
+
+ACTION_KINDS = {1: "a numpy bool", 2: "a float", 3: "an array", 4: "something else"}  # the worker's codes
+
+
+def judge_env_actions(args, result, expected, services):
+    """Right actions (as ``exact``), each of a type ``env.step`` takes."""
+    verdict = exact("actions", EXACTLY, _policy_row)(args, result, expected, services)
+    if not verdict.passed:
+        return verdict
+    accepted, kinds = result["values"]["accepted"], result["values"]["kinds"]
+    if bool(np.all(accepted)):
+        return verdict
+    row = int(np.flatnonzero(~np.asarray(accepted, dtype=bool))[0])
+    what = ACTION_KINDS.get(int(kinds[row]), "something else")
+    refused = int(np.sum(~np.asarray(accepted, dtype=bool)))
+    return Verdict(False, "the int 0 or 1, which env.step takes (a Python bool or a numpy integer works too)",
+                   show(result["values"]["actions"]), f"the action of row {row} is {what}, which env.step refuses "
+                   f"({refused} of {len(accepted)} rows); int(...) makes it the int 0 or 1")
+
+
+# --------------------------------------------------------------------------------------------
+# 1.2.1 central differences
+# --------------------------------------------------------------------------------------------
+
+
+def _signed(rng, size):
+    return rng.uniform(0.5, 2.0, size=size) * rng.choice([-1.0, 1.0], size=size)
+
+
+def _coupled(rng, size):
+    """f(v) = sum_i a_i v_i^3 + sin(b . v) + v^T M v: a cubic part, on which a forward difference is
+    off, and coordinates that interact, so that moving any other point than x shows."""
+    return {"kind": "coupled", "a": _signed(rng, size), "b": rng.normal(size=size), "m": rng.normal(size=(size, size))}
+
+
+def make_fd_uniform(rng, variant):
+    if variant == 2:  # a single number x
+        return {"f": _coupled(rng, 1), "x": float(rng.uniform(-2, 2)), "h": float(rng.uniform(0.1, 0.6)),
+                "x_scalar": True, "h_scalar": True}
+    size = int(rng.integers(3, 7))
+    step = float(rng.uniform(0.1, 0.6))
+    return {"f": _coupled(rng, size), "x": rng.uniform(-2, 2, size),
+            "h": step if variant == 0 else np.full(size, step), "h_scalar": variant == 0}
+
+
+def make_fd_steps(rng, variant):
+    size = int(rng.integers(4, 8))
+    return {"f": _coupled(rng, size), "x": rng.uniform(-1.5, 1.5, size), "h": rng.uniform(0.05, 0.8, size)}
+
+
+def _coordinate(args, index):
+    if not index:
+        return ""
+    (i,) = index
+    h = np.broadcast_to(np.asarray(args["h"], dtype=np.float64), np.shape(args["x"]))
+    return f"coordinate {i}: x[{i}] = {_number_text(args['x'][i])}, h[{i}] = {_number_text(h[i])}"
+
+
+# Central differences of the same f at the same points, computed in another order ((f+ - f-) / (2h)
+# or f+ / (2h) - f- / (2h), 0.5 * ... / h): rounding of values of f up to about 30 over steps
+# down to 0.01 differs by at most about 1e-12; a wrong formula (h for 2h, h/2 steps, a forward
+# difference) by 1e-3 or more.
+FD_TOLERANCE = Tolerance(1e-9, 1e-10, "rounding of the same differences in another order stays below 1e-12")
+
+
+# --------------------------------------------------------------------------------------------
+# 1.3.1 eval_params, judged by property on the grader's own records of the episodes it played
+# --------------------------------------------------------------------------------------------
+# The worker's run_policy forwards every episode to the trusted side, which plays it with the
+# reference (with a seed of the grader's choosing when the call gave none) and records it; the
+# probe calls eval_params twice with the same arguments. ``result["records"]`` holds, in order,
+# every episode (params, seed, seeded, reward): nothing the student's process says about them.
+
+
+def make_eval_case(rng, variant):
+    return {"params": rng.uniform(-1.0, 1.0, 4) * np.array([0.3, 1.0, 1.0, 1.0]),
+            "num_rollouts": int((3, 4, 1, 6)[variant % 4]), "seed": int(rng.integers(0, 5_000))}
+
+
+def _eval_episodes(args, result):
+    """(params, seeds, seeded, rewards) of the run_policy episodes of the case, or the Verdict's
+    actual text when there are not num_rollouts of them for each of the two calls."""
+    records, count = result["records"], args["num_rollouts"]
+    direct = records["episode_direct"]
+    params, seeds = records["episode_params"][direct], records["episode_seeds"][direct]
+    seeded, rewards = records["episode_seeded"][direct], records["episode_rewards"][direct]
+    if len(seeds) != 2 * count:
+        return None, (f"{len(seeds)} episode(s) played with run_policy in two calls of eval_params with "
+                      f"num_rollouts={count}")
+    return (params, seeds, seeded, rewards), None
+
+
+def _shown_seeds(seeds, seeded):
+    return "[" + ", ".join(str(int(s)) if flag else "unseeded" for s, flag in zip(seeds, seeded)) + "]"
+
+
+def judge_eval_mean(args, result, expected, services):
+    count = args["num_rollouts"]
+    want = f"the mean of {count} episode reward(s) of params {show(args['params'])}, each from its own start state"
+    if result["status"] != "ok":
+        return Verdict(False, want, result["error"])
+    episodes, problem = _eval_episodes(args, result)
+    if problem:
+        return Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}")
+    params, seeds, seeded, rewards = (part[:count] for part in episodes)
+    if not np.array_equal(params, np.repeat(np.asarray(args["params"], dtype=np.float64)[None, :], count, axis=0)):
+        return Verdict(False, want, f"episodes played with other parameters: {show(params)}")
+    if len(set(seeds.tolist())) != count:
+        return Verdict(False, want, f"episodes from the same start state: seeds {_shown_seeds(seeds, seeded)}")
+    mean = float(np.mean(rewards))
+    value = result["values"]["value"]
+    return Verdict(_close(value, mean, 1e-9, 1e-9), f"{want}: {show(mean)} (rewards {show(rewards)})", show(value))
+
+
+def judge_eval_distinct(args, result, expected, services):
+    count = args["num_rollouts"]
+    want = f"{count} episodes from {count} different seeds"
+    if result["status"] != "ok":
+        return Verdict(False, want, result["error"])
+    episodes, problem = _eval_episodes(args, result)
+    if problem:
+        return Verdict(False, want, problem)
+    seeds, seeded = episodes[1][:count], episodes[2][:count]
+    return Verdict(len(set(seeds.tolist())) == count, want, f"seeds {_shown_seeds(seeds, seeded)}")
+
+
+def judge_eval_repeat(args, result, expected, services):
+    if result["status"] != "ok":
+        return Verdict(False, "the same number twice", result["error"])
+    values, records = result["values"], result["records"]
+    flags = records["episode_seeded"][records["episode_direct"]]
+    seeded = len(flags) > 0 and bool(np.all(flags))
+    same = _close(values["value_again"], values["value"], 0, 0)
+    actual = f"{show(values['value'])}, then {show(values['value_again'])}"
+    if not seeded:
+        actual += " (run_policy was called without a seed: a random start state each time)"
+    return Verdict(seeded and same, "the same number twice", actual)
+
+
+# --------------------------------------------------------------------------------------------
+# 1.3.2 the training loop: a known objective, and a real run, on the grader's records
+# --------------------------------------------------------------------------------------------
+# In ``train_known`` cases every eval_params call is answered by the grader with the case's known
+# objective g (a quartic, so that central differences depend on the step) and recorded with its
+# rollouts and seed; in ``train_real`` cases the reference server answers it and the grader
+# records the same, with the reference's value. The judges read these records.
+
+
+def make_known_training(rng, variant):
+    basis = rng.normal(size=(4, 4))
+    return {"objective": {"A": basis @ basis.T / 8.0 + 0.5 * np.eye(4), "m": rng.normal(size=4),
+                          "q": rng.uniform(0.01, 0.05, size=4), "c": float(rng.uniform(100, 400))},
+            "iterations": int(2 + variant), "rollouts": int((2, 3)[variant % 2]),
+            "learning_rate": float((0.07, 0.12, 0.2)[variant % 3]), "fd_step": float((0.5, 0.25, 0.4)[variant % 3]),
+            "seed": int(rng.integers(0, 100)), "initial_params": rng.normal(size=4) * 0.5}
+
+
+def central_difference(g, theta, step):
+    eye = np.eye(len(theta))
+    return np.array([(g(theta + step * e) - g(theta - step * e)) / (2 * step) for e in eye])
+
+
+def _training_shape(args, values):
+    iterations = args["iterations"]
+    history, rewards = values["params_history"], values["rewards"]
+    if history.shape != (iterations + 1, 4) or rewards.shape != (iterations + 1,):
+        return f"params_history of shape {history.shape} and rewards of shape {rewards.shape}"
+    return None
+
+
+def _training_run(args, result, want, shape_want=None):
+    """(values, None) of a training run that returned arrays of the right shapes, else (None, the
+    Verdict that fails it: its error, or the shapes it returned against ``shape_want`` or ``want``)."""
+    if result["status"] != "ok":
+        return None, Verdict(False, want, result["error"])
+    wrong_shape = _training_shape(args, result["values"])
+    if wrong_shape:
+        return None, Verdict(False, shape_want or want, wrong_shape)
+    return result["values"], None
+
+
+def _rollouts_used(args, result):
+    """None if every recorded evaluation asked for num_rollouts_per_eval episodes, else the Verdict's actual."""
+    rollouts = result["records"]["evaluation_rollouts"]
+    wrong = np.flatnonzero(rollouts != args["rollouts"])
+    if len(rollouts) == 0:
+        return "eval_params was never called"
+    if wrong.size:
+        return (f"evaluation {int(wrong[0]) + 1} of {len(rollouts)} asked eval_params for {int(rollouts[wrong[0]])} "
+                f"rollout(s); num_rollouts_per_eval is {args['rollouts']}")
+    return None
+
+
+def judge_known_steps(args, result, expected, services):
+    want = (f"every iteration: g from eval_params with num_rollouts_per_eval = {args['rollouts']} rollouts, "
+            "theta[t+1] = theta[t] + learning_rate * central-difference gradient of g at theta[t] with step "
+            "fd_step, and rewards[t+1] = g(theta[t+1])")
+    values, failed = _training_run(args, result, want, f"{args['iterations']} updates")
+    if failed:
+        return failed
+    g = training_objective(args["objective"])
+    history, rewards = values["params_history"], values["rewards"]
+    if not _close(history[0], args["initial_params"], 0, 0):
+        return Verdict(False, f"theta[0] = initial_params = {show(args['initial_params'])}", show(history[0]))
+    wrong_rollouts = _rollouts_used(args, result)
+    if wrong_rollouts:
+        return Verdict(False, want, wrong_rollouts)
+    for t in range(args["iterations"]):
+        step = history[t] + args["learning_rate"] * central_difference(g, history[t], args["fd_step"])
+        if not _close(history[t + 1], step, 1e-9, 1e-9):
+            return Verdict(False, f"theta[{t + 1}] = {show(step)} (step fd_step = {show(args['fd_step'])})",
+                           f"theta[{t + 1}] = {show(history[t + 1])}")
+        if not _close(rewards[t + 1], g(history[t + 1]), 1e-9, 1e-9):
+            return Verdict(False, f"rewards[{t + 1}] = g(theta[{t + 1}]) = {show(g(history[t + 1]))}, the reward "
+                                  "after the update", f"rewards[{t + 1}] = {show(rewards[t + 1])}")
+    if not _close(values["final_params"], history[-1], 0, 0):
+        return Verdict(False, f"the returned policy has theta[{args['iterations']}]", show(values["final_params"]))
+    return Verdict(True)
+
+
+def judge_known_rewards(args, result, expected, services):
+    want = "rewards[t] = g(theta[t]) after every update"
+    values, failed = _training_run(args, result, want)
+    if failed:
+        return failed
+    g = training_objective(args["objective"])
+    wanted = np.array([g(theta) for theta in values["params_history"]])
+    return Verdict(_close(values["rewards"], wanted, 1e-9, 1e-9), show(wanted), show(values["rewards"]))
+
+
+def make_real_training(rng, variant):
+    # Rates that do not converge on the notebook's run: the inputs shown to students give no 1.3.3 answer away.
+    # A step other than the settings' 0.5, so that a run that ignores fd_step shows.
+    return {"iterations": 2, "rollouts": 3, "learning_rate": float((0.0003, 0.0002)[variant % 2]),
+            "fd_step": 0.35, "seed": int(rng.integers(0, 1000)), "initial_params": rng.normal(size=4) * 0.05}
+
+
+def _at(points, target):
+    return [index for index, point in enumerate(points) if np.allclose(point, target, rtol=1e-12, atol=1e-12)]
+
+
+def judge_real_rewards(args, result, expected, services):
+    want = (f"every update: theta[t] = theta[t-1] + learning_rate * (g(theta + h e_i) - g(theta - h e_i)) / 2h "
+            f"with h = fd_step = {show(args['fd_step'])}, g from eval_params with {args['rollouts']} rollouts "
+            "(both of one seed), and rewards[t] = eval_params of theta[t] after the update")
+    values, failed = _training_run(args, result, want)
+    if failed:
+        return failed
+    history, rewards, records = values["params_history"], values["rewards"], result["records"]
+    if not _close(values["final_params"], history[-1], 0, 0):
+        return Verdict(False, "the returned policy has the last parameters", show(values["final_params"]))
+    wrong_rollouts = _rollouts_used(args, result)
+    if wrong_rollouts:
+        return Verdict(False, want, wrong_rollouts)
+    points, seeds, scores = records["evaluation_params"], records["evaluation_seeds"], records["evaluation_values"]
+    h, rate = args["fd_step"], args["learning_rate"]
+    for t in range(1, len(rewards)):
+        latest = -1
+        for i in range(4):
+            offset = np.zeros(4)
+            offset[i] = h
+            pairs = [(a, b) for a in _at(points, history[t - 1] + offset) for b in _at(points, history[t - 1] - offset)
+                     if seeds[a] == seeds[b]]
+            good = [(a, b) for a, b in pairs
+                    if _close(history[t][i], history[t - 1][i] + rate * ((scores[a] - scores[b]) / (2.0 * h)), 1e-9, 1e-9)]
+            if not good:
+                found = "no evaluations at theta[t-1] +- h e_i" if not pairs else \
+                    f"evaluations there give theta[{t}][{i}] = {show(history[t - 1][i] + rate * (scores[pairs[0][0]] - scores[pairs[0][1]]) / (2.0 * h))}"
+                return Verdict(False, want, f"theta[{t}][{i}] = {show(history[t][i])}: {found}")
+            latest = max(latest, min(max(pair) for pair in good))
+        after = [index for index in _at(points, history[t]) if index > latest and scores[index] == rewards[t]]
+        if not after:
+            return Verdict(False, want, f"rewards[{t}] = {show(rewards[t])} is no evaluation of theta[{t}] made after "
+                                        "its update")
+    return Verdict(True)
+
+
+# --------------------------------------------------------------------------------------------
+# 1.3.3 the learning rate: the notebook's run, with the reference's training code
+# --------------------------------------------------------------------------------------------
+
+
+def make_learning_rate(rng, variant):
+    return {"name": "LEARNING_RATE"}
+
+
+def _learning_rate_services(args, result):
+    if result["status"] != "ok":
+        return []
+    value = float(result["values"]["value"])
+    if not np.isfinite(value) or value <= 0:
+        return []
+    return [("train_notebook", {"learning_rate": value})]
+
+
+def converged_at(rewards, max_reward):
+    """The first t from which every reward is the maximum (t counts updates), or None."""
+    below = np.flatnonzero(np.asarray(rewards) < max_reward)
+    first = 0 if below.size == 0 else int(below[-1]) + 1
+    return first if first < len(rewards) else None
+
+
+def judge_learning_rate(args, result, expected, services):
+    want = "training converges within 7 iterations: reward 500 from then on"
+    if result["status"] != "ok":
+        return Verdict(False, want, result["error"])
+    value = float(result["values"]["value"])
+    if not np.isfinite(value) or value <= 0:
+        return Verdict(False, want, f"LEARNING_RATE = {show(value)} is not a number > 0")
+    if not services or services[0]["status"] != "ok":
+        return Verdict(False, want, f"the training run with LEARNING_RATE = {show(value)} failed: "
+                                    f"{services[0]['error'] if services else 'not run'}")
+    run = services[0]["values"]
+    deadline, top = int(run["deadline"]), float(run["max_reward"])
+    want = f"training converges within {deadline} iterations: reward {show(top)} from then on"
+    at = converged_at(run["rewards"], top)
+    actual = f"LEARNING_RATE = {show(value)}: rewards {show(run['rewards'], 25)}; " + \
+        (f"converged at iteration {at}" if at is not None else "never converged")
+    return Verdict(at is not None and at <= deadline, want, actual)

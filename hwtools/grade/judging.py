@@ -1,0 +1,128 @@
+"""Points and feedback for one TODO: each behaviour's verdicts on its cases, in the grader's own words.
+
+``judge_todo`` turns what a run answered (``broker.run_cases``) into the TODO's entry of the
+result dict: points per behaviour (every input, visible and hidden, must pass), the first failing
+visible check with its input, expected and actual value, and notes. What a student may read is
+built from the grader's words and the student's own values on visible inputs only; a hidden
+input's failure shows only the check's description. Text that holds a line of the reference
+solution is replaced (``Scrubber``).
+"""
+
+from __future__ import annotations
+
+from hwtools.grade import broker, checks, suspects
+from hwtools.grade.channel import fingerprint, text
+from hwtools.todos import TODO_BY_ID
+
+_STATUS = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed"}
+
+
+def service_key(probe, args):
+    return f"{probe}:{fingerprint({'args': args})}"
+
+
+class Scrubber:
+    """Keeps the reference's solution lines out of anything shown to a student."""
+
+    def __init__(self, reference_bodies):
+        lines = set()
+        for bodies in (reference_bodies or {}).values():
+            for body in bodies:
+                for line in body:
+                    stripped = line.strip()
+                    if len(stripped) >= 12 and not stripped.startswith("#"):
+                        lines.add(stripped)
+        self.lines = tuple(sorted(lines))
+
+    def __call__(self, text):
+        text = str(text)
+        if any(line in text for line in self.lines):
+            return "(not shown: it contains the reference solution's code)"
+        return text
+
+
+def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_notes):
+    """The result entry of ``todo``. ``run``: None (no checks), or {"student": (Outcome, results) or
+    a reason string, "reference": {case id: values} or None}; ``services``: {service_key: result};
+    ``cases``: its CaseSet; ``expected_of(case_id, behaviour, reference)``: the values an exact
+    check compares with; ``limits``: (time limit s, memory limit MiB); ``seen_notes``: notes on
+    the code itself."""
+    info = TODO_BY_ID[todo]
+    entry = {"id": todo, "title": info.title, "auto_earned": 0.0, "auto_possible": info.auto,
+             "manual_possible": info.manual, "manual": info.manual_what, "code": info.code,
+             "status": "graded", "checks": [], "first_failure": None, "notes": []}
+    if run is None:
+        entry["status"] = "graded by hand" if info.manual else "no checks"
+        return entry
+    student = run["student"]
+    if isinstance(student, str):
+        entry["status"] = "not graded"
+        entry["notes"].append(student)
+        outcome, results = None, {}
+    else:
+        outcome, results = student
+        if outcome.status != "ok":
+            entry["status"] = _STATUS[outcome.status]
+            where = "" if outcome.phase == "hidden" else f" (after {outcome.seconds:.1f} s)"
+            entry["notes"].append(f"the run of your code stopped: {outcome.detail}{where}; time limit "
+                                  f"{limits[0]:.0f} s, memory limit {limits[1]:.0f} MiB")
+        entry["notes"].extend(outcome.notes)
+    reference = run["reference"] or {}
+    earned, warnings = 0.0, []
+    for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
+        verdicts, source = [], checks.cases_of(behaviour)
+        for visible, phase in ((True, cases.visible), (False, cases.hidden)):
+            for case_id, case_behaviour, args in phase:
+                if case_behaviour is not source:
+                    continue
+                result = results.get(case_id) or broker.missing(outcome, isinstance(student, str) and student)
+                if visible:
+                    warnings.extend(result.get("warnings", []))
+                expected = expected_of(case_id, behaviour, reference)
+                if behaviour.exact and expected is None:
+                    continue  # a hidden case with only an answer key: not checked here
+                wanted = behaviour.services(args, result) if behaviour.services else []
+                answers = [services.get(service_key(probe, a)) for probe, a in wanted]
+                try:
+                    verdict = behaviour.judge(args, result, expected, answers)
+                except Exception as error:  # noqa: BLE001 - malformed values from the worker
+                    verdict = checks.Verdict(False, "", text(f"unexpected values ({type(error).__name__}: {error})"))
+                verdicts.append((visible, args, verdict))
+        passed = bool(verdicts) and all(verdict.passed for _, _, verdict in verdicts)
+        failed_on = None if passed else ("visible" if any(v and not d.passed for v, _, d in verdicts) else "hidden")
+        earned += behaviour.points if passed else 0.0
+        # The first visible input this check fails on, shown in full (the notebook's check cells show it per check).
+        first = next(((args, verdict) for v, args, verdict in verdicts if v and not verdict.passed), None)
+        visible_failure = None if first is None else {
+            "input": scrub(checks.show(first[0])), "expected": scrub(first[1].expected), "actual": scrub(first[1].actual)}
+        if visible_failure is not None:  # where they differ, and the tolerance
+            visible_failure.update({name: scrub(getattr(first[1], name))
+                                    for name in ("difference", "tolerance") if getattr(first[1], name)})
+        entry["checks"].append({
+            "check": behaviour.description, "points": behaviour.points, "passed": passed, "failed_on": failed_on,
+            "visible_inputs": sum(v for v, _, _ in verdicts), "hidden_inputs": sum(not v for v, _, _ in verdicts),
+            "visible_failure": visible_failure})
+        if entry["first_failure"] is None and not passed:
+            if visible_failure is not None:
+                entry["first_failure"] = {"check": behaviour.description, "hidden": False, **visible_failure}
+            else:
+                entry["first_failure"] = {"check": behaviour.description, "hidden": True,
+                                          "input": "a hidden input (not shown)"}
+    entry["auto_earned"] = round(min(earned, info.auto), 2)
+    entry["notes"].extend(seen_notes)
+    for warning in dict.fromkeys(warnings):
+        entry["notes"].append(f"warning (not a failure): {scrub(warning)}")
+    return entry
+
+
+def seen(todo, read, layout):
+    """A note naming what the student's code for ``todo`` reaches for that a solution does not need."""
+    if todo not in read.bodies or layout is None:
+        return []
+    module_level = any(block.module_level for file_blocks in layout.blocks_by_file.values()
+                       for block in file_blocks if block.todo == todo)
+    names = sorted({name for body in read.bodies[todo] for name in suspects.scan_body(body, module_level)})
+    if not names:
+        return []
+    return [f"seen in your code for {todo}: {', '.join(names)}. None of it can change a grade: your code runs "
+            "in a sandbox and only the values it returns are compared, by the grader, with the reference's"]

@@ -1,0 +1,145 @@
+"""The checks of problem 2 (logistic regression): the inputs each behaviour of 2.1.1-2.3.1 is tried on, and their tolerances.
+
+``checks.py`` puts them in its table (``BEHAVIOURS``); every problem-2 check is exact (``verdicts.exact``).
+Standard library and numpy only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hwtools.grade.verdicts import Tolerance, _number_text, show
+
+
+def _two_class_data(rng, samples, features, scale=1.0):
+    X = rng.normal(size=(samples, features)) * scale
+    y = rng.integers(0, 2, size=samples)
+    return X, y
+
+
+# The sigmoid: float64 resolves values near 1 to 1.1e-16 only, and a correct formula other than
+# the reference's (1 / (1 + e^-z), 0.5 (1 + tanh(z / 2)), clipping at +-500) is off by up to
+# 2.2e-16 there, and by as much in absolute terms near 0 (tanh); so: 1e-12 relative, plus 1e-15
+# absolute (about nine float64 steps below 1). Far out (|z| > 20), where sigma is within 2.1e-9
+# of 0 or 1, the values check accepts 1e-8 (a sigmoid clipped at +-20 is a shortcut, not a wrong
+# formula); the precision check asks for float64 precision there too.
+SIGMOID_PRECISION = Tolerance(1e-12, 1e-15, "float64 resolves values near 1 to 1.1e-16; correct formulas agree "
+                                            "to 2.2e-16")
+SIGMOID_TOLERANCE = Tolerance(1e-12, 1e-15, SIGMOID_PRECISION.why, loose_atol=1e-8,
+                              loose=lambda args: np.abs(np.asarray(args["z"])) > 20,
+                              loose_words="where |z| > 20 (sigma is within 2.1e-9 of 0 or 1 there)")
+FAR_Z = np.array([-1000.0, -745.0, -709.5, -100.0, -40.0, -24.4, 24.4, 40.0, 100.0, 709.5, 745.0, 1000.0])
+
+
+def _sigmoid_entry(args, index):
+    z = np.asarray(args["z"], dtype=np.float64)
+    return f"z{list(index) if index else ''} = {_number_text(z[index] if index else z)}"
+
+
+def make_sigmoid_values(rng, variant):
+    """Rows of numbers from -1000 to 1000: 0 and +-1, moderate values, and far tails (where
+    e^z overflows for z > 709 and e^-z for z < -709)."""
+    z = np.concatenate([rng.uniform(-20, 20, size=8), rng.uniform(20, 1000, size=4) * rng.choice([-1.0, 1.0], size=4)])
+    if variant == 0:  # the landmarks among drawn values (so that no hidden input repeats or reads as a visible one)
+        return {"z": rng.permutation(np.concatenate([[0.0, 1.0, -1.0, 3.0, -3.0, 10.0, -10.0, 19.9, -19.9], FAR_Z, z]))}
+    return {"z": rng.permutation(z)}
+
+
+def make_sigmoid_shapes(rng, variant):
+    """A single number, and arrays of 2 and 3 axes holding moderate and far values."""
+    if variant == 0:
+        return {"z": np.asarray(float(rng.uniform(-8, 8)))}
+    shape = ((3, 4), (2, 3, 2))[(variant - 1) % 2]
+    z = rng.uniform(-35, 35, size=shape)
+    z.flat[: 2] = rng.uniform(710, 1000, size=2) * np.array([1.0, -1.0])
+    return {"z": z}
+
+
+def make_sigmoid_precision(rng, variant):
+    """20 < |z| <= 50, where sigma is within 2.1e-9 of 0 or 1: sigma(-24.4) = 2.5e-11, not 0."""
+    z = rng.uniform(20, 50, size=10) * rng.choice([-1.0, 1.0], size=10)
+    if variant == 0:  # the landmarks among drawn values
+        return {"z": rng.permutation(np.concatenate([[-24.4, 24.4, -20.5, 20.5, -30.0, 30.0, -37.0, 37.0, -50.0, 50.0], z]))}
+    return {"z": z}
+
+
+def make_predict_prob(rng, variant, zero_bias=False):
+    features = int(rng.integers(3, 6))
+    X, _ = _two_class_data(rng, int(rng.integers(8, 15)), features)
+    weights = rng.normal(size=features + 1)
+    if zero_bias:
+        weights[-1] = 0.0
+    elif abs(weights[-1]) < 0.5:
+        weights[-1] = 0.5 + weights[-1]
+    if variant == 2 and not zero_bias:  # far scores (hundreds): probabilities 0 and 1, never NaN
+        weights = weights * 150.0
+    return {"n_features": features, "weights": weights, "X": X}
+
+
+def _sample_row(args, index):
+    return f"row {index[0]} of X, x~ = [{show(np.asarray(args['X'])[index[0]])[1:-1]}, 1]"
+
+
+# Probabilities sigma(w~ . x~): the score summed in another order (a loop, X @ w + b) differs by
+# about 1e-15 relative; sigma passes it on, no larger. A missing or misplaced bias shifts them by 0.01 or more.
+PROBABILITY_TOLERANCE = Tolerance(1e-10, 1e-15, "the score summed in another order differs by rounding, "
+                                               "about 1e-15")
+
+
+def make_step(rng, variant, start="zero", steps=1):
+    features = int(rng.integers(3, 6))
+    X, y = _two_class_data(rng, int(rng.integers(15, 30)), features)
+    weights = np.zeros(features + 1) if start == "zero" else rng.normal(size=features + 1) * 0.3
+    if start != "zero" and variant == 2:  # far scores: y - sigma is 0 or +-1, never NaN
+        weights = weights * 400.0
+    return {"n_features": features, "weights": weights, "X": X, "y": y if variant % 2 == 0 else y.astype(np.float64),
+            "learning_rate": float((0.05, 0.01, 0.02)[variant % 3]), "steps": steps}
+
+
+def _step_weight(args, index):
+    step, j = index
+    bias = " (the bias)" if j == int(args["n_features"]) else ""
+    return f"weight {j}{bias} after step {step + 1}"
+
+
+def make_one_vs_rest(rng, variant, iterations=1, start="zero"):
+    features, classes = int(rng.integers(3, 5)), int((3, 4)[variant % 2])
+    X = rng.normal(size=(40, features))
+    y = np.concatenate([np.arange(classes), rng.integers(0, classes, size=40 - classes)])
+    case = {"n_features": features, "n_classes": classes, "X": X, "y": rng.permutation(y),
+            "learning_rate": 0.05, "n_iters": iterations}
+    if start != "zero":
+        case["initial_weights"] = rng.normal(size=(classes, features + 1)) * 0.3
+    return case
+
+
+def make_iterations(rng, variant):
+    """2 to 4 iterations, from zero weights and from weights a fit before left."""
+    return make_one_vs_rest(rng, variant, iterations=(3, 2, 4)[variant % 3], start=("zero", "given")[variant % 2])
+
+
+def _class_weight(args, index):
+    c, j = index
+    bias = " (the bias)" if j == int(args["n_features"]) else ""
+    return f"classifier {c}, weight {j}{bias}"
+
+
+def make_ll_gradient(rng, variant):
+    features = int(rng.integers(2, 5))
+    X, y = _two_class_data(rng, 25, features)
+    weights = rng.normal(size=features + 1) * 0.5
+    if variant == 1:  # far scores: sigma is 0 or 1 there, never NaN
+        weights = weights * 300.0
+    return {"weights": weights, "X": X, "y": y}
+
+
+def _gradient_entry(args, index):
+    (j,) = index
+    bias = " (the bias)" if j == len(args["weights"]) - 1 else ""
+    return f"entry {j}{bias}"
+
+
+# Weights after steps of eq. (8): sums over up to 30 samples in another order (a loop, a matrix
+# product) differ by about 1e-15; the mean for the sum, a sign or a missed step by 1e-3 or more.
+STEP_TOLERANCE = Tolerance(1e-9, 1e-12, "sums over the samples in another order differ by rounding, about 1e-15")
+

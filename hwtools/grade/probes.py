@@ -1,0 +1,299 @@
+"""The probes: what the grader's worker calls in the kit for one check, and the values each one answers.
+
+A probe takes one case's arguments (numbers, made by ``checks.py``), calls the homework's
+functions in the kit under test and returns its values: {name: number or array}. ``PROBES``
+maps a probe's name to its function and ``RESULTS`` to the schema of its answer (every name,
+its dtype kinds and number of dimensions), which the grader enforces on what comes back: an
+answer with other names, other dtypes or more dimensions fails its case.
+
+The probes run in the sandbox (the grader copies this file into every kit); the grader imports
+this module too, for ``RESULTS`` and the known functions below, so it imports nothing beyond
+numpy at the top: ``hwlib`` is imported inside the probes, from the kit under test only.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+
+import numpy as np
+
+KIT_DIR = "/kit"  # set by the runtime to the kit under test
+PROBES, RESULTS = {}, {}
+_FLOAT, _INT = "f", "iu"
+
+
+def probe(**schema):
+    """Register a probe: ``schema`` gives, per value it answers, (dtype kinds, allowed ndims)."""
+
+    def register(function):
+        name = function.__name__[len("probe_"):]
+        PROBES[name], RESULTS[name] = function, schema
+        return function
+
+    return register
+
+
+# --------------------------------------------------------------------------------------------
+# Known functions (the grader computes the same ones on its side)
+# --------------------------------------------------------------------------------------------
+
+
+def known_function(spec):
+    """The scalar function f of a finite-difference case: ``spec`` names its kind and coefficients.
+
+    cubic:   f(v) = sum_i a_i v_i^3 + c                      (coordinates separate)
+    coupled: f(v) = sum_i a_i v_i^3 + sin(b . v) + v^T M v   (coordinates interact)
+    """
+    kind = spec["kind"]
+    a = np.asarray(spec["a"], dtype=np.float64)
+    if kind == "cubic":
+        c = float(spec.get("c", 0.0))
+
+        def f(v):
+            return float(np.sum(a * np.asarray(v, dtype=np.float64) ** 3) + c)
+    elif kind == "coupled":
+        b = np.asarray(spec["b"], dtype=np.float64)
+        m = np.asarray(spec["m"], dtype=np.float64)
+
+        def f(v):
+            v = np.atleast_1d(np.asarray(v, dtype=np.float64))
+            return float(np.sum(a * v**3) + np.sin(b @ v) + v @ m @ v)
+    else:
+        raise ValueError(f"unknown test function kind {kind!r}")
+    return f
+
+
+def training_objective(spec):
+    """g(theta) = c - (theta - m)^T A (theta - m) - sum_i q_i (theta_i - m_i)^4, a smooth stand-in for
+    the expected reward. With q = 0 central differences are exact for any step; with q > 0 they
+    depend on the step (for d^4: 4 d^3 + 4 d h^2), so a run that uses another step than fd_step shows."""
+    a = np.asarray(spec["A"], dtype=np.float64)
+    m = np.asarray(spec["m"], dtype=np.float64)
+    q = np.asarray(spec.get("q", np.zeros_like(m)), dtype=np.float64)
+    c = float(spec["c"])
+
+    def g(theta):
+        d = np.asarray(theta, dtype=np.float64).reshape(-1) - m
+        return float(c - d @ a @ d - np.sum(q * d**4))
+
+    return g
+
+
+quadratic_objective = training_objective  # the name checks.py used before the quartic term
+
+
+# --------------------------------------------------------------------------------------------
+# Turning what the student's code returned into numbers
+# --------------------------------------------------------------------------------------------
+
+_PLAIN = (np.ndarray, np.generic, int, float, bool, list, tuple)
+
+
+def numbers(value, what):
+    """``value`` as a plain float64 array, or a TypeError saying what came back instead."""
+    if not isinstance(value, _PLAIN) or (isinstance(value, np.ndarray) and type(value) is not np.ndarray):
+        raise TypeError(f"{what} returned a {type(value).__module__}.{type(value).__name__}, not numbers")
+    try:
+        return np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise TypeError(f"{what} returned something that is not an array of numbers ({error})") from None
+
+
+def action(value):
+    """An action as ``env.step`` takes it: a Python int (bools included), a numpy integer, or a
+    0-d integer array, equal to 0 or 1."""
+    if type(value) is np.ndarray and value.shape == () and value.dtype.kind in "iu":
+        value = value.item()
+    if type(value) not in (int, bool) and not isinstance(value, np.integer):
+        raise TypeError(f"the policy returned a {type(value).__module__}.{type(value).__name__}; "
+                        "env.step takes the int 0 or 1")
+    number = int(value)
+    if number not in (0, 1):
+        raise ValueError(f"the policy returned {number}; actions are 0 (left) and 1 (right)")
+    return number
+
+
+def _import(name):
+    module = importlib.import_module(name)
+    kit = os.path.realpath(KIT_DIR)
+    if not os.path.realpath(getattr(module, "__file__", "") or "").startswith(kit + os.sep):
+        raise ImportError(f"{name} was not imported from the kit under test")
+    return module
+
+
+# --------------------------------------------------------------------------------------------
+# Problem 1
+# --------------------------------------------------------------------------------------------
+
+
+@probe(actions=(_INT, (1,)))
+def probe_policy_actions(args):
+    cartpole = _import("hwlib.cartpole")
+    params, observations = np.asarray(args["params"]), np.asarray(args["obs"])
+    actions = [action(cartpole.CartPoleLinearPolicy(p.copy())(o.copy())) for p, o in zip(params, observations)]
+    return {"actions": np.array(actions, dtype=np.int64)}
+
+
+def _action_kind(value):
+    """0: a type ``env.step`` takes (gymnasium's own test: an int, bools included, a numpy integer,
+    a 0-d integer array); else what it is: 1 a numpy bool, 2 a float, 3 an array, 4 anything else."""
+    import gymnasium  # noqa: PLC0415 - the kit's own dependency, there in the sandbox
+
+    if gymnasium.spaces.Discrete(2).contains(value):
+        return 0
+    if isinstance(value, np.bool_):
+        return 1
+    if isinstance(value, (float, np.floating)):
+        return 2
+    return 3 if isinstance(value, np.ndarray) else 4
+
+
+@probe(actions=(_FLOAT, (1,)), accepted=("b", (1,)), kinds=(_INT, (1,)))
+def probe_policy_choices(args):
+    """The policy's action on each (params, obs) row as a number (whatever numeric type it came
+    in), and whether env.step takes it as it is (``accepted``, with its ``kinds``)."""
+    cartpole = _import("hwlib.cartpole")
+    params, observations = np.asarray(args["params"]), np.asarray(args["obs"])
+    actions, kinds = [], []
+    for p, o in zip(params, observations):
+        value = cartpole.CartPoleLinearPolicy(p.copy())(o.copy())
+        if not isinstance(value, _PLAIN) or np.asarray(value).dtype.kind not in "biuf" or np.asarray(value).size != 1:
+            raise TypeError(f"the policy returned {type(value).__module__}.{type(value).__name__}, not the number 0 or 1")
+        kinds.append(_action_kind(value))
+        actions.append(float(np.asarray(value, dtype=np.float64).reshape(())))
+    return {"actions": np.array(actions, dtype=np.float64), "accepted": np.array(kinds, dtype=np.int64) == 0,
+            "kinds": np.array(kinds, dtype=np.int64)}
+
+
+@probe(gradient=(_FLOAT, (0, 1, 2)))
+def probe_finite_diff(args):
+    finite_diff = _import("hwlib.finite_diff")
+    f = known_function(args["f"])
+    x = float(args["x"]) if args.get("x_scalar") else np.array(args["x"], dtype=np.float64)
+    h = float(args["h"]) if args.get("h_scalar") else np.array(args["h"], dtype=np.float64)
+    return {"gradient": numbers(finite_diff.scalar_finite_diff(f, x, h), "scalar_finite_diff")}
+
+
+@probe(value=(_FLOAT, (0, 1)), value_again=(_FLOAT, (0, 1)))
+def probe_eval_params(args):
+    """Two calls of eval_params with the same arguments. The episodes they play are recorded by
+    the grader (run_policy is answered on its side), never here."""
+    policy_search = _import("hwlib.policy_search")
+    params = np.array(args["params"], dtype=np.float64)
+    first = numbers(policy_search.eval_params(params.copy(), int(args["num_rollouts"]), seed=int(args["seed"])),
+                    "eval_params")
+    again = numbers(policy_search.eval_params(params.copy(), int(args["num_rollouts"]), seed=int(args["seed"])),
+                    "eval_params")
+    return {"value": first, "value_again": again}
+
+
+_TRAINING = {"rewards": (_FLOAT, (1,)), "params_history": (_FLOAT, (2,)), "final_params": (_FLOAT, (1,))}
+
+
+def _train(args):
+    policy_search = _import("hwlib.policy_search")
+    run = policy_search.train_cartpole_policy(
+        num_training_iterations=int(args["iterations"]), num_rollouts_per_eval=int(args["rollouts"]),
+        learning_rate=float(args["learning_rate"]), fd_step=float(args["fd_step"]), seed=int(args["seed"]),
+        initial_params=np.array(args["initial_params"], dtype=np.float64))
+    return {"rewards": numbers(getattr(run, "rewards", None), "train_cartpole_policy's rewards"),
+            "params_history": numbers(getattr(run, "params_history", None), "train_cartpole_policy's params_history"),
+            "final_params": numbers(getattr(getattr(run, "policy", None), "params", None), "the trained policy's params")}
+
+
+@probe(**_TRAINING)
+def probe_train_known(args):
+    """A training run in which every eval_params call is answered by the grader with the known
+    objective ``args["objective"]`` (and recorded there: parameters, rollouts, seed)."""
+    return _train(args)
+
+
+@probe(**_TRAINING)
+def probe_train_real(args):
+    """A real training run: eval_params (and every episode) is answered and recorded by the grader."""
+    return _train(args)
+
+
+@probe(value=(_FLOAT, (0,)))
+def probe_settings_value(args):
+    settings = _import("hwlib.settings")
+    name = args["name"]
+    value = getattr(settings, name, None)
+    if value is None:
+        raise ValueError(f"{name} is None: it is not set yet")
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} is a {type(value).__name__}, not a number")
+    return {"value": np.float64(value)}
+
+
+# --------------------------------------------------------------------------------------------
+# Problem 2
+# --------------------------------------------------------------------------------------------
+
+
+@probe(values=(_FLOAT, (0, 1, 2, 3)))
+def probe_sigmoid(args):
+    logreg = _import("hwlib.logreg")
+    z = np.array(args["z"], dtype=np.float64)
+    return {"values": numbers(logreg.sigmoid(z.copy()), "sigmoid")}
+
+
+@probe(probabilities=(_FLOAT, (0, 1, 2)))
+def probe_predict_prob(args):
+    logreg = _import("hwlib.logreg")
+    classifier = logreg.TwoClassLogisticRegressionClassifier(int(args["n_features"]))
+    classifier.weights = np.array(args["weights"], dtype=np.float64)
+    return {"probabilities": numbers(classifier.predict_prob(np.array(args["X"], dtype=np.float64)), "predict_prob")}
+
+
+@probe(weights=(_FLOAT, (1, 2, 3)))
+def probe_gradient_step(args):
+    logreg = _import("hwlib.logreg")
+    classifier = logreg.TwoClassLogisticRegressionClassifier(int(args["n_features"]))
+    classifier.weights = np.array(args["weights"], dtype=np.float64)
+    X, y = np.array(args["X"], dtype=np.float64), np.array(args["y"])
+    after = []
+    for _ in range(int(args["steps"])):
+        classifier.gradient_ascent_step(X.copy(), y.copy(), float(args["learning_rate"]))
+        after.append(numbers(classifier.weights, "self.weights after gradient_ascent_step").copy())
+    return {"weights": np.array(after)}
+
+
+@probe(weights=(_FLOAT, (1, 2, 3)), accuracies=(_FLOAT, (0, 1)))
+def probe_one_vs_rest(args):
+    logreg = _import("hwlib.logreg")
+    model = logreg.MultiClassLogisticRegressionClassifier(int(args["n_features"]), int(args["n_classes"]))
+    for c, start in enumerate(np.array(args.get("initial_weights", ()), dtype=np.float64)):  # where fit starts
+        model.classifiers[c].weights = start.copy()
+    accuracies = model.fit(np.array(args["X"], dtype=np.float64), np.array(args["y"]),
+                           float(args["learning_rate"]), int(args["n_iters"]))
+    weights = np.array([numbers(c.weights, "classifiers[c].weights") for c in model.classifiers])
+    return {"weights": weights, "accuracies": numbers(accuracies, "fit")}
+
+
+@probe(gradient=(_FLOAT, (0, 1, 2)))
+def probe_ll_gradient(args):
+    logreg = _import("hwlib.logreg")
+    gradient = logreg.log_likelihood_gradient(np.array(args["weights"], dtype=np.float64),
+                                              np.array(args["X"], dtype=np.float64), np.array(args["y"]))
+    return {"gradient": numbers(gradient, "log_likelihood_gradient")}
+
+
+# --------------------------------------------------------------------------------------------
+# Services: run by the reference server only, to judge what a student's run produced
+# --------------------------------------------------------------------------------------------
+
+
+@probe(rewards=(_FLOAT, (1,)), deadline=(_INT, (0,)), max_reward=(_FLOAT, (0,)), iterations=(_INT, (0,)),
+       seed=(_INT, (0,)))
+def probe_train_notebook(args):
+    policy_search = _import("hwlib.policy_search")
+    settings = _import("hwlib.settings")
+    cartpole = _import("hwlib.cartpole")
+    run = policy_search.train_cartpole_policy(learning_rate=float(args["learning_rate"]))
+    return {"rewards": np.array(run.rewards, dtype=np.float64),
+            "deadline": np.int64(settings.CONVERGENCE_DEADLINE),
+            "max_reward": np.float64(cartpole.MAX_EPISODE_REWARD),
+            "iterations": np.int64(settings.NUM_TRAINING_ITERATIONS),
+            "seed": np.int64(settings.TRAINING_SEED)}
