@@ -3,7 +3,8 @@
 A notebook's check cell is one line, ``check("1.2.1")`` (the convention of otter-grader's
 ``grader.check("q1")``). It runs ``python -m hwtools.grade KIT --todo 1.2.1`` in a subprocess, the
 same command and the same verdicts a student gets in a terminal, and prints one line per check
-of that TODO: ``pass``, or ``FAIL`` with the visible input, the expected and the actual value.
+of that TODO: ``pass``, or ``FAIL`` with the visible input, the expected and the actual value, where
+they differ and the tolerance (the same fields as every report, ``feedback.FAILURE_FIELDS``).
 An untouched TODO (its stub raises ``TodoNotDone``) prints "TODO 1.2.1 is not done yet".
 
 * In the student edition the grader compares with the answer key the release build wrote,
@@ -32,6 +33,7 @@ import tempfile
 import textwrap
 from pathlib import Path
 
+from hwtools.grade.feedback import FAILURE_FIELDS
 from hwtools.todos import TODO_BY_ID
 
 KIT_ROOT = Path(__file__).resolve().parents[1]
@@ -148,7 +150,7 @@ def _visible_failure(entry, check):
         return check["visible_failure"]
     first = entry.get("first_failure")
     if first and not first["hidden"] and first["check"] == check["check"]:
-        return {name: first[name] for name in ("input", "expected", "actual")}
+        return {name: first[name] for name in FAILURE_FIELDS if first.get(name)}
     return None
 
 
@@ -216,8 +218,9 @@ def check_lines(entry):
         lines += _wrap(f"{'pass' if ok else 'FAIL'}  {check['check']}", "  ", hang=6)
         failure = None if ok else _visible_failure(entry, check)
         if failure:
-            for name in ("input", "expected", "actual"):
-                lines += _wrap(f"{name + ':':<10}{failure[name]}", "        ")
+            for name in FAILURE_FIELDS:  # the words of every report (feedback.failure_words)
+                if failure.get(name):
+                    lines += _wrap(f"{name + ':':<12}{failure[name]}", "        ")
     for note in entry["notes"]:
         lines += _wrap(f"note: {note}", "  ")
     return lines

@@ -77,6 +77,15 @@ def test_one_line_per_check_and_the_failing_inputs():
     assert lines[3].endswith("x=[1.0, 2.0], h=0.5") and lines[4].endswith("[2.0, 4.0]") and lines[5].endswith("[0.0, 0.0]")
 
 
+def test_a_failure_shows_where_it_differs_and_the_tolerance_as_every_report_does():
+    check = a_check("sigmoid far out", False, "visible", "2.06115e-09")
+    check["visible_failure"].update(difference="first difference at index [0]: relative difference 80.5",
+                                    tolerance="|actual - expected| <= 1e-12 * |expected| + 1e-15")
+    lines = check_lines(entry([check]))
+    assert [line.split()[0] for line in lines[2:]] == ["input:", "expected:", "actual:", "difference:", "tolerance:"]
+    assert lines[5].endswith("relative difference 80.5") and lines[6].endswith("+ 1e-15")
+
+
 def test_a_check_that_fails_only_on_hidden_inputs_passes_on_the_visible_ones():
     lines = check_lines(entry([a_check("one step", False, "hidden"), a_check("steps", True)]))
     assert lines[0].endswith("all 2 visible checks pass") and "FAIL" not in "\n".join(lines)
