@@ -10,7 +10,8 @@ channel, and holds a control's next change while one is in flight (a slider drag
 keys sends its latest value once the kernel has answered the one before), so the kernel cannot
 tell from the controls which of two changes came last: a held slider value could land after a
 preset and overwrite half of it. So the order is kept where the actions happen, in the browser.
-A small front-end part (``PanelControls``, an anywidget) holds the panel's state there:
+A small front-end part (``PanelControls``, an anywidget, in ``hwlib/_panel_parts.py``) holds the
+panel's state there:
 
 - it draws the preset buttons and sets the sliders to a preset in the browser, so a preset is
   just the latest value of each slider, which the browser then sends last;
@@ -45,16 +46,13 @@ reward; the panel works as soon as the TODO is done and the cell is run again.
 
 from __future__ import annotations
 
-import contextlib
 import html
 import math
 import re
 import threading
 from dataclasses import dataclass, replace
 
-import anywidget
 import ipywidgets as widgets
-import traitlets
 
 from hwlib._checks import check_params, check_seed
 from hwlib.cartpole import (
@@ -66,6 +64,13 @@ from hwlib.cartpole import (
     CartPoleLinearPolicy,
     Episode,
     play_episode,
+)
+from hwlib._panel_parts import (
+    LANDSCAPE_BUTTON_LABEL,
+    LANDSCAPE_TOOLTIP_UNCONNECTED,
+    STATUS_LINES,
+    LatestOnly,
+    PanelControls,
 )
 from hwlib.plots.cartpole import EpisodeView, how_it_ended, message_png
 
@@ -79,9 +84,7 @@ SLIDER_LABELS = tuple(
 DEFAULT_SEED = 0
 PLAY_INTERVAL_MS = 50  # one animation frame every 0.05 s (20 frames per second) ...
 PLAY_FRAMES = 250  # ... and at most 250 frames per episode (a 500-step episode plays in 12.5 s)
-LANDSCAPE_BUTTON_LABEL = "Show θ in the landscape"
 FIGURE_DPI, FIGURE_WIDTH, FIGURE_HEIGHT = 80, 9.0, 4.4  # the panel's picture: 720 x 352 px
-STATUS_LINES = 2  # the status line's height, in lines of text
 
 
 def slider_grid_value(value):
@@ -129,7 +132,6 @@ STEP_TOOLTIP = "The time step the cart is drawn at (the grey line in the plots).
 PLAY_TOOLTIP = "Play the episode: moves the time step from 0 to the end (press again to pause)"
 REWARD_TOOLTIP = f"Total reward of the episode: +1 for every step the pole stays up, {MAX_EPISODE_REWARD} at most"
 LANDSCAPE_TOOLTIP_CONNECTED = "Mark the current θ in the reward landscape view"
-LANDSCAPE_TOOLTIP_UNCONNECTED = "No landscape view is connected to this panel (connect one with panel.on_send_params)"
 
 
 @dataclass(frozen=True)
@@ -202,285 +204,6 @@ def todo_message(error):
             return lines
     detail = str(error).strip()
     return [f"TODO {todo} is not done yet" + (f": {detail}" if detail and detail != str(todo) else "")]
-
-
-class LatestOnly:
-    """Runs ``draw()`` one call at a time, and always once more after the last ``request()``.
-
-    ``request()`` from any thread: if nobody is drawing, the calling thread draws, and keeps
-    drawing until no request arrived during its last draw; if somebody is drawing, the request
-    is only noted and the call returns at once. Inside ``with held():`` requests are only noted;
-    leaving the block makes one request for all of them.
-    """
-
-    def __init__(self, draw):
-        self._draw = draw
-        self._lock = threading.Lock()
-        self._pending = False
-        self._drawing = False
-        self._holds = 0
-
-    def request(self):
-        with self._lock:
-            self._pending = True
-            if self._drawing or self._holds:
-                return
-            self._drawing = True
-        try:
-            while True:
-                with self._lock:
-                    if not self._pending or self._holds:
-                        self._drawing = False
-                        return
-                    self._pending = False
-                self._draw()
-        except BaseException:
-            with self._lock:
-                self._drawing = False
-            raise
-
-    @contextlib.contextmanager
-    def held(self):
-        with self._lock:
-            self._holds += 1
-        try:
-            yield
-        finally:
-            with self._lock:
-                self._holds -= 1
-            self.request()
-
-
-# --- the front-end part -----------------------------------------------------------------------
-
-PANEL_ESM = r"""
-const modelId = (ref) => String(ref).replace(/^IPY_MODEL_/, "");
-// A change whose origin is the kernel arrives through the model's set_state, which holds
-// _state_lock while it sets the values; a change made in the browser does not.
-const fromKernel = (model) => model._state_lock !== null && model._state_lock !== undefined;
-
-function button(label, tooltip) {
-  const element = document.createElement("button");
-  element.className = "jupyter-widgets jupyter-button widget-button";
-  element.textContent = label;
-  element.title = tooltip;
-  return element;
-}
-
-async function render({ model, el }) {
-  const manager = model.widget_manager;
-  const controls = await Promise.all(model.get("controls").map((ref) => manager.get_model(modelId(ref))));
-  const params = controls.slice(0, 4), seed = controls[4], step = controls[5], play = controls[6];
-  // The panel's state as the browser has it: what the student did last is what it holds.
-  const local = { params: params.map((m) => m.get("value")), seed: seed.get("value"), step: null };
-  let seq = model.get("drawn");
-  let applying = false;
-  const send = () => {
-    seq += 1;
-    el.dataset.sent = String(seq);
-    model.set("state", { seq, params: [...local.params], seed: local.seed, step: local.step });
-    model.save_changes();
-  };
-  const listeners = [];
-  const listen = (control, handler) => {
-    control.on("change:value", handler);
-    listeners.push([control, handler]);
-  };
-  params.forEach((control, index) => listen(control, () => {
-    local.params[index] = control.get("value");
-    if (applying) return;
-    local.step = null;  // a new episode is shown at its end
-    if (!fromKernel(control)) send();
-  }));
-  listen(seed, () => {
-    local.seed = seed.get("value");
-    local.step = null;
-    if (!fromKernel(seed)) send();
-  });
-  listen(step, () => {
-    if (fromKernel(step)) return;  // the kernel showing a new episode's end, or an echo
-    local.step = step.get("value");
-    if (play.get("playing") && overlay.draw(local)) return;  // ▶ plays in the browser: no frame from the kernel
-    send();
-  });
-  const onPlaying = () => {
-    if (!play.get("playing") && overlay.shown) {
-      overlay.until = seq + 1;  // the kernel's own frame of the step where the play stopped replaces the overlay
-      send();
-    }
-  };
-  play.on("change:playing", onPlaying);
-
-  const presets = document.createElement("div");
-  presets.className = "hwlib-presets";
-  for (const preset of model.get("presets")) {
-    const element = button(preset.name, preset.tooltip);
-    element.addEventListener("click", () => {
-      applying = true;
-      try {
-        params.forEach((control, index) => {
-          control.set("value", preset.params[index]);
-          control.save_changes();
-        });
-      } finally {
-        applying = false;
-      }
-      local.params = [...preset.params];
-      local.step = null;
-      send();
-    });
-    presets.append(element);
-  }
-  const landscape = button("", "");
-  const icon = document.createElement("i");
-  icon.className = "fa fa-crosshairs";
-  landscape.append(icon, " " + model.get("landscape_label"));
-  landscape.addEventListener("click", () => model.send({ event: "send_params", params: [...local.params] }));
-  const showLandscape = () => {
-    landscape.disabled = !model.get("landscape_enabled");
-    landscape.title = model.get("landscape_tooltip");
-  };
-  showLandscape();
-  const overlay = playOverlay(model, el);
-  const showDrawn = () => {
-    el.dataset.drawn = String(model.get("drawn"));
-    if (overlay.until !== null && model.get("drawn") >= overlay.until) overlay.hide();
-  };
-  showDrawn();
-  model.on("change:landscape_enabled", showLandscape);
-  model.on("change:landscape_tooltip", showLandscape);
-  model.on("change:drawn", showDrawn);
-  el.classList.add("hwlib-panel-controls");
-  el.append(presets, landscape);
-  model.send({ event: "connected" });
-  return () => {
-    for (const [control, handler] of listeners) control.off("change:value", handler);
-    play.off("change:playing", onPlaying);
-    overlay.hide();
-  };
-}
-
-// While ▶ plays, the browser draws the time cursors and the cart over the episode's picture
-// without them (both from the kernel, once per episode): the kernel draws no frame per step, so
-// the play keeps its pace whatever the kernel is doing. When it stops, the kernel's frame returns.
-function playOverlay(model, el) {
-  const state = { shown: false, until: null, canvas: null, image: null, bitmap: null, data: null };
-  const load = async () => {
-    const data = model.get("overlay");
-    state.data = null;
-    state.bitmap = null;
-    const png = model.get("overlay_png");
-    if (!data || !png || !png.byteLength) return;
-    state.bitmap = await createImageBitmap(new Blob([png], { type: "image/png" }));
-    state.data = data;
-  };
-  model.on("change:overlay_png", load);
-  load();
-  const place = () => {
-    const panel = el.closest(".hwlib-slider-panel");
-    const image = panel && panel.querySelector("img.hwlib-episode");
-    if (!image) return false;
-    if (!state.canvas || state.image !== image) {
-      state.canvas?.remove();
-      state.canvas = document.createElement("canvas");
-      state.canvas.className = "hwlib-play-overlay";
-      image.insertAdjacentElement("afterend", state.canvas);
-      state.image = image;
-    }
-    const canvas = state.canvas;
-    canvas.width = image.naturalWidth || image.width;
-    canvas.height = image.naturalHeight || image.height;
-    canvas.style.left = image.offsetLeft + "px";
-    canvas.style.top = image.offsetTop + "px";
-    return true;
-  };
-  state.draw = (local) => {
-    const data = state.data;
-    if (!data || !state.bitmap || data.seed !== local.seed || data.params.some((value, i) => value !== local.params[i])) return false;
-    if (local.step === null || local.step > data.num_steps || !place()) return false;
-    const k = local.step, ctx = state.canvas.getContext("2d");
-    ctx.drawImage(state.bitmap, 0, 0);
-    ctx.strokeStyle = data.cursor.color;
-    ctx.lineWidth = data.cursor.width;
-    for (const cursor of data.cursors) {
-      ctx.beginPath();
-      ctx.moveTo(cursor.x[k], cursor.top);
-      ctx.lineTo(cursor.x[k], cursor.bottom);
-      ctx.stroke();
-    }
-    ctx.save();
-    ctx.beginPath();
-    ctx.rect(data.clip.left, data.clip.top, data.clip.width, data.clip.height);
-    ctx.clip();
-    ctx.fillStyle = data.cart.color;
-    ctx.fillRect(data.cart.left[k], data.cart.top, data.cart.width, data.cart.height);
-    ctx.strokeStyle = data.pole.color;
-    ctx.lineWidth = data.pole.width;
-    ctx.lineCap = "round";
-    ctx.beginPath();
-    ctx.moveTo(data.pole.x0[k], data.pole.y0);
-    ctx.lineTo(data.pole.x1[k], data.pole.y1[k]);
-    ctx.stroke();
-    ctx.fillStyle = data.axle.color;
-    ctx.beginPath();
-    ctx.arc(data.pole.x0[k], data.pole.y0, data.axle.radius, 0, 2 * Math.PI);
-    ctx.fill();
-    ctx.restore();
-    ctx.fillStyle = data.caption.color;
-    ctx.font = `${data.caption.size}px "DejaVu Sans", sans-serif`;
-    ctx.textAlign = "center";
-    ctx.fillText(`step ${k} of ${data.num_steps}` + (k === data.num_steps ? `: ${data.ending}` : ""), data.caption.x, data.caption.y);
-    state.canvas.style.display = "block";
-    state.shown = true;
-    state.until = null;
-    el.dataset.frames = String(Number(el.dataset.frames || 0) + 1);
-    return true;
-  };
-  state.hide = () => {
-    if (state.canvas) state.canvas.style.display = "none";
-    state.shown = false;
-    state.until = null;
-  };
-  return state;
-}
-
-export default { render };
-"""
-
-PANEL_CSS = f"""
-.hwlib-slider-panel {{ position: relative; }}
-.hwlib-play-overlay {{ position: absolute; display: none; pointer-events: none; }}
-.hwlib-panel-controls {{ display: flex; flex-direction: column; gap: 4px; }}
-.hwlib-presets {{ display: flex; gap: 4px; }}
-.hwlib-panel-controls .widget-button {{ width: auto; margin: 0; }}
-.hwlib-status .widget-html-content {{
-  display: -webkit-box; -webkit-box-orient: vertical; -webkit-line-clamp: {STATUS_LINES};
-  overflow: hidden; white-space: normal; line-height: 1.4em; height: {1.4 * STATUS_LINES}em;
-}}
-"""
-
-
-class PanelControls(anywidget.AnyWidget):
-    """The panel's front-end part: the preset and landscape buttons, and the state as the browser has it.
-
-    ``controls``: the four θ sliders, the seed box, the time step slider and the Play (their browser
-    models are followed). ``overlay`` and ``overlay_png``: what the browser draws ▶ Play with (see
-    ``EpisodeView.overlay``), for the ``params`` and ``seed`` they name. ``state`` (browser → kernel): ``{"seq", "params", "seed", "step"}`` after each
-    action, ``step`` None for "the end of the episode". ``drawn``: the ``seq`` of the last state the
-    kernel has drawn (the browser shows it as ``data-drawn``, and the state it sent as ``data-sent``).
-    """
-
-    _esm = PANEL_ESM
-    _css = PANEL_CSS
-    controls = traitlets.List(trait=traitlets.Instance(widgets.Widget)).tag(sync=True, **widgets.widget_serialization)
-    presets = traitlets.List().tag(sync=True)
-    landscape_label = traitlets.Unicode(LANDSCAPE_BUTTON_LABEL).tag(sync=True)
-    landscape_tooltip = traitlets.Unicode(LANDSCAPE_TOOLTIP_UNCONNECTED).tag(sync=True)
-    landscape_enabled = traitlets.Bool(False).tag(sync=True)
-    state = traitlets.Any(None).tag(sync=True, echo_update=False)  # checked by parse_frontend_state
-    drawn = traitlets.Int(0).tag(sync=True)
-    overlay = traitlets.Dict(allow_none=True, default_value=None).tag(sync=True)
-    overlay_png = traitlets.Bytes(b"").tag(sync=True)
 
 
 @dataclass(frozen=True)

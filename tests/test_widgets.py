@@ -190,6 +190,7 @@ def test_panel_names_every_control_and_gives_each_a_tooltip():
     assert all(slider.min <= -2 and slider.max >= 2 and slider.step == 0.01 for slider in panel.param_sliders)
 
 
+@pytest.mark.todo("1.1.1")  # the episode's length is the student's policy's
 def test_play_is_linked_to_the_time_step_in_the_browser():
     panel = SliderPanel(ALWAYS_RIGHT_PARAMS)
     link = panel.play_link
