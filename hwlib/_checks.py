@@ -80,3 +80,14 @@ def check_positive_number(value, name):
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     return float(value)
+
+
+def check_path(path, name="path"):
+    """A training path: shape (T + 1, 4), finite; returned as a float64 array."""
+    array = as_float_array(path, name)
+    if array.ndim != 2 or array.shape[1] != NUM_PARAMS or array.shape[0] == 0:
+        raise ValueError(
+            f"{name} must have shape (T + 1, 4): the parameters before training and after each update, "
+            f"got shape {array.shape}"
+        )
+    return check_finite(array, name)

@@ -13,6 +13,7 @@
 | ``LEARNING_RATE``            | TODO 1.3.3          | 1.3.3: the learning rate you chose                      |
 | ``SWEEP_LEARNING_RATES``     | 8 rates, 1e-4..1e-2 | 1.3.3: the learning-rate sweep                          |
 | ``SWEEP_NUM_SEEDS``          | 20                  | 1.3.3: training runs per rate in the sweep              |
+| ``MAX_MINUTES``              | 10                  | a training run or sweep the kit expects to take longer is stopped, and it says why |
 | ``LANDSCAPE_*``              | axes (2, 3), 41 x 41 over [-2, 2], 5 episodes, seed 0 | the reward landscape's slices |
 | ``P2_LEARNING_RATE``         | 0.1                 | 2.3.2: the logistic-regression learning rate            |
 | ``P2_NUM_ITERATIONS``        | 100                 | 2.3.2: outer iterations of the one-vs-rest fit          |
@@ -39,6 +40,7 @@ LEARNING_RATE = 0.001
 ### END SOLUTION 1.3.3
 SWEEP_LEARNING_RATES = tuple(float(rate) for rate in np.geomspace(1e-4, 1e-2, 8))
 SWEEP_NUM_SEEDS = 20
+MAX_MINUTES = 10
 LANDSCAPE_AXES = (2, 3)  # the reward landscape's default slice: theta_3 (pole angle) across, theta_4 up
 LANDSCAPE_GRID_SIZE = 41
 LANDSCAPE_VALUE_RANGE = (-2.0, 2.0)

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 from hwlib import CartPoleLinearPolicy, play_episode, random_policy_rewards, run_episodes, run_policy
+from hwlib._engine import batch_actions
 from hwlib.cartpole import (
     ALWAYS_LEFT_PARAMS,
     ALWAYS_RIGHT_PARAMS,
-    batch_actions,
     episode_seeds,
     sample_random_params,
     start_states,

@@ -21,7 +21,7 @@ from hwlib import (
     sigmoid,
     train_test_split,
 )
-from hwlib import logreg
+from hwlib import _logreg_inputs, logreg
 
 # A correct sigmoid may warn: 1 / (1 + np.exp(-z)) at z = -1000 says "overflow encountered in exp"
 # and still returns the right 0.0. These tests judge the values the student's code returns, not
@@ -331,17 +331,17 @@ def test_predictions_reject_non_numeric_features():
 
 def test_a_training_loop_checks_its_samples_once_and_trusts_only_its_own_copy():
     X, _ = small_problem()
-    view, X_aug = logreg._prepare_training_features(X, 3)
+    view, X_aug = _logreg_inputs.prepare_training_features(X, 3)
     np.testing.assert_array_equal(X_aug, add_bias_feature(X))
     assert not view.flags.writeable and not X_aug.flags.writeable
-    assert logreg._checked_with_bias(view, "X", 3) is X_aug  # no second check, no second copy
-    assert logreg._prepare_training_features(view, 3)[1] is X_aug
-    assert logreg._checked_with_bias(X, "X", 3) is not X_aug  # the caller's own array: checked and copied
-    assert logreg._checked_with_bias(view[:5], "X", 3).shape == (5, 4)  # a part of it is not the prepared matrix
+    assert _logreg_inputs.checked_with_bias(view, "X", 3) is X_aug  # no second check, no second copy
+    assert _logreg_inputs.prepare_training_features(view, 3)[1] is X_aug
+    assert _logreg_inputs.checked_with_bias(X, "X", 3) is not X_aug  # the caller's own array: checked and copied
+    assert _logreg_inputs.checked_with_bias(view[:5], "X", 3).shape == (5, 4)  # a part of it is not the prepared matrix
     with pytest.raises(ValueError, match="X must have 2 columns"):
-        logreg._checked_with_bias(view, "X", 2)
+        _logreg_inputs.checked_with_bias(view, "X", 2)
     X_aug.flags.writeable = True  # unlocked: it might change, so it is checked again
-    assert logreg._checked_with_bias(view, "X", 3) is not X_aug
+    assert _logreg_inputs.checked_with_bias(view, "X", 3) is not X_aug
 
 
 # --- 2.1.1 the gradient, and the gradient check ---------------------------------------------

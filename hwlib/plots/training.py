@@ -91,7 +91,7 @@ def plot_training_curve(rewards, learning_rate=None, deadline=settings.CONVERGEN
 def plot_learning_rate_sweep(sweep, chosen_learning_rate=None):
     """Share of seeds converging within the deadline, per learning rate, with ``chosen_learning_rate`` marked.
 
-    ``sweep`` is an ``hwlib.policy_search.SweepResult`` or anything with the same ``learning_rates``,
+    ``sweep`` is an ``hwlib.training.SweepResult`` or anything with the same ``learning_rates``,
     ``converged_fraction``, ``seeds`` and ``deadline``.
     """
     rates = np.asarray(sweep.learning_rates, dtype=np.float64)
