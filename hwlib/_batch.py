@@ -11,7 +11,9 @@ hour. ``Session.run(tasks)`` (used by ``hwlib/training.py``) makes the same code
    learns exactly which episodes the call asks for, whatever seeds it uses; then all of them are
    played in one batch, and the call runs again for real with the true rewards. The random state
    (the run's generator, numpy's and ``random``'s global ones) is put back before the second run,
-   so it asks for the same episodes. Nothing is played that the code does not ask for.
+   so it asks for the same episodes. Nothing is played that the code does not ask for. (Saving the
+   global generators is slow, so they are saved only while the run's first calls show that its
+   code draws from them.)
 2. **Runs side by side.** Several tasks (the sweep's 160 training runs) run in threads, one at a
    time in a fixed order, each until it waits for episodes; then the main thread plays what all
    of them wait for in one batch (``hwlib/_engine.py``). The order never depends on timing, so a
@@ -48,7 +50,13 @@ PLACEHOLDER_REWARD = 0.0  # what an episode not yet played gives while a call is
 _KEEP_ROUNDS = 4  # results are kept for this many batches after they were played
 _MAX_RECORDED = 100_000  # a recording pass that asks for more than this is given up
 _JOIN_SECONDS = 1.0  # how long a stopped run's thread may take to end
-_current = threading.local()  # .run: the _Run this thread works for
+_WATCH_CALLS = 3  # recorded calls during which a run is watched for draws from the global random generators
+class _Current(threading.local):
+    run = None  # the _Run this thread works for
+
+
+_current = _Current()
+_FLOAT64, _SHAPE = np.dtype(np.float64), (_engine.NUM_OBSERVATIONS,)
 
 
 class Cancelled(BaseException):
@@ -72,7 +80,7 @@ class TooSlow(RuntimeError):
 
 def current_run():
     """The run this thread works for, or None."""
-    return getattr(_current, "run", None)
+    return _current.run
 
 
 class _Run:
@@ -81,6 +89,7 @@ class _Run:
     def __init__(self, session, index, task, seed_of_generator):
         self.session, self.index, self.task = session, index, task
         self._seed_of_generator, self._generator = seed_of_generator, None
+        self._watch, self._globals_used = _WATCH_CALLS, False
         self.recording = False
         self.replaying = 0  # depth of replayed calls running for real
         self.recorded = {}  # key -> (policy, params), in the order asked for
@@ -99,12 +108,25 @@ class _Run:
         return int(self.generator.integers(0, SEED_BOUND))
 
     def random_state(self):
-        return self.generator.bit_generator.state, np.random.get_state(), random.getstate()
+        """The run's generator's state, and numpy's and Python's global ones while they are watched."""
+        watching = self._globals_used or self._watch > 0
+        return (self.generator.bit_generator.state, np.random.get_state() if watching else None,
+                random.getstate() if watching else None)
 
     def set_random_state(self, state):
-        self.generator.bit_generator.state, numpy_state, python_state = state
-        np.random.set_state(numpy_state)
-        random.setstate(python_state)
+        """Put the random state back. The global generators are slow to save; they are watched for the
+        first few calls, and from then on only if the run's code drew from them."""
+        generator_state, numpy_state, python_state = state
+        self.generator.bit_generator.state = generator_state
+        if numpy_state is None:
+            return
+        now = np.random.get_state()
+        if numpy_state[2] != now[2] or not np.array_equal(numpy_state[1], now[1]) or python_state != random.getstate():
+            self._globals_used = True
+            np.random.set_state(numpy_state)
+            random.setstate(python_state)
+        elif not self._globals_used:
+            self._watch -= 1
 
 
 class Session:
@@ -248,40 +270,44 @@ class Session:
     # --- episodes -----------------------------------------------------------------------------
 
     def _route(self, policy, seed):
-        """``run_policy(policy, seed)`` inside a run (its arguments checked)."""
+        """``run_policy(policy, seed)`` inside a run (its arguments checked). Called for every
+        episode the training asks for, so it is written for speed."""
         if self.cancelled:
             raise Cancelled()
-        run = current_run()
+        run = _current.run
         if seed is None:
             seed = run.draw_seed()
         if not self.batched:
             self.episodes_played += 1
             return _play(policy, seed, None).total_reward
-        params = _params_of(policy)
+        params = policy.params if isinstance(policy, CartPoleLinearPolicy) else None
+        if type(params) is np.ndarray and params.dtype == _FLOAT64 and params.shape == _SHAPE:
+            data = params.tobytes()
+            if data not in _FINITE:
+                params, data = _params_of(policy)
+        else:
+            params, data = _params_of(policy)
         if params is None:  # not a linear policy: played here, on its own
             if run.recording:
                 return PLACEHOLDER_REWARD
             self.episodes_played += 1
             return _play(policy, seed, None).total_reward
-        key = (type(policy), params.tobytes(), seed)
-        if key in self._results:
-            return self._outcome(key)
-        if run.recording:
-            run.recorded.setdefault(key, (policy, params))
-            if len(run.recorded) > _MAX_RECORDED:
-                raise _GiveUpRecording()
-            return PLACEHOLDER_REWARD
-        self.asked += 1
-        self._pending.setdefault(key, (policy, params))
-        while key not in self._results:
-            self._wait_for_round(run)
-        return self._outcome(key)
-
-    def _outcome(self, key):
-        outcome = self._results[key][1]
-        if isinstance(outcome, BaseException):
-            raise outcome
-        return outcome
+        key = (type(policy), data, seed)
+        result = self._results.get(key)
+        if result is None:
+            if run.recording:
+                run.recorded.setdefault(key, (policy, params))
+                if len(run.recorded) > _MAX_RECORDED:
+                    raise _GiveUpRecording()
+                return PLACEHOLDER_REWARD
+            self.asked += 1
+            self._pending.setdefault(key, (policy, params))
+            while key not in self._results:
+                self._wait_for_round(run)
+            result = self._results[key]
+        if isinstance(result[1], BaseException):
+            raise result[1]
+        return result[1]
 
     def play_round(self):
         """Play every episode asked for or announced and not yet played, in one batch (and step by
@@ -289,10 +315,13 @@ class Session:
         requests, self._pending = self._pending, {}
         self.rounds += 1
         batch_keys, batch_params = [], []
+        trusted_of = self._trusted
         for key, (policy, params) in requests.items():
             if key in self._results:
                 continue
-            trusted = self._is_trusted(key, policy, params)
+            trusted = trusted_of.get(key[:2])
+            if trusted is None:
+                trusted = self._is_trusted(key, policy, params)
             if trusted is True:
                 batch_keys.append(key)
                 batch_params.append(params)
@@ -306,7 +335,7 @@ class Session:
                 self._results[key] = (self.rounds, reward)
             self.episodes_played += len(batch_keys)
         oldest = self.rounds - _KEEP_ROUNDS
-        if oldest > 0 and len(self._results) > 50_000:
+        if oldest > 0 and len(self._results) > 200_000:
             self._results = {key: value for key, value in self._results.items() if value[0] > oldest}
 
     def _is_trusted(self, key, policy, params):
@@ -434,13 +463,23 @@ class Session:
 
 
 def _params_of(policy):
-    """The float64 parameters (4,) of a linear policy, or None for any other callable."""
+    """The float64 parameters (4,) of a linear policy and their bytes, or (None, None) for any other callable."""
     if not isinstance(policy, CartPoleLinearPolicy):
-        return None
+        return None, None
     params = policy.params
     if type(params) is not np.ndarray or params.dtype != np.float64 or params.shape != (_engine.NUM_OBSERVATIONS,):
         try:  # the policy's params were replaced after it was made: read them as they are now
             params = np.array(params, dtype=np.float64).reshape(_engine.NUM_OBSERVATIONS)
         except (TypeError, ValueError):
-            return None
-    return params if np.isfinite(params).all() else None
+            return None, None
+    data = params.tobytes()
+    if data not in _FINITE:
+        if not np.isfinite(params).all():
+            return None, None
+        if len(_FINITE) > 500_000:
+            _FINITE.clear()
+        _FINITE.add(data)
+    return params, data
+
+
+_FINITE = set()  # the bytes of parameter vectors known to be finite

@@ -55,6 +55,8 @@ def check_params_batch(params, name="params"):
 
 def check_seed(seed, name="seed"):
     """A seed: a non-negative integer."""
+    if type(seed) is int and seed >= 0:  # the common case, without the slower checks below
+        return seed
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
         raise ValueError(f"{name} must be a non-negative integer, got {seed!r}")
     return int(seed)

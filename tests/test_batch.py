@@ -257,3 +257,19 @@ def test_a_sweep_that_would_take_hours_says_so_before_it_starts(monkeypatch):
     assert "equation (1) gives" in str(caught.value) and "max_minutes=None" in str(caught.value)
     assert caught.value._render_traceback_()[1].startswith("For example CartPoleLinearPolicy(")
     assert time.monotonic() - started < 30  # told before it runs: nothing of the sweep was played
+
+
+def eval_global_generator(params, num_rollouts=20, seed=0):
+    policy = CartPoleLinearPolicy(params)
+    return float(np.mean([run_policy(policy, seed=int(np.random.randint(0, 2**31 - 1))) for _ in range(num_rollouts)]))
+
+
+def test_code_that_draws_from_numpys_global_generator_gets_the_plain_loops_numbers(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_global_generator)
+    runs = {}
+    for batched in (True, False):
+        np.random.seed(5)
+        runs[batched] = run_training(3, 5, 0.001, seed=1, batched=batched, progress=False)
+        runs[batched, "next draw"] = np.random.randint(1000)  # the global generator moved on as in the plain loop
+    np.testing.assert_array_equal(runs[True].rewards, runs[False].rewards)
+    assert runs[True, "next draw"] == runs[False, "next draw"]
