@@ -5,13 +5,42 @@ Four sliders set the policy's weights θ₁..θ₄, a number box sets the episod
 ``render_panel``, a plain function that plays the episode and draws it; the widgets only pass
 values in and show what comes back, so the panel's logic is tested without a browser.
 
-Redraws never overlap and never go stale. A change can arrive on more than one thread (the
-kernel may handle widget messages outside its main thread), and a figure drawn by two threads
-at once can end up blank for good. So the panel draws one frame at a time: a change that
-arrives while a frame is being drawn is only noted, and the drawing thread draws once more,
-with the controls' latest values, before it stops (many quick changes cost one extra frame,
-not one each). The presets lie on the sliders' grid, so the browser has nothing to snap and
-echo back when a preset is clicked.
+**The panel ends on what was clicked.** The browser sends each control's changes on its own
+channel, and holds a control's next change while one is in flight (a slider dragged or moved by
+keys sends its latest value once the kernel has answered the one before), so the kernel cannot
+tell from the controls which of two changes came last: a held slider value could land after a
+preset and overwrite half of it. So the order is kept where the actions happen, in the browser.
+A small front-end part (``PanelControls``, an anywidget) holds the panel's state there:
+
+- it draws the preset buttons and sets the sliders to a preset in the browser, so a preset is
+  just the latest value of each slider, which the browser then sends last;
+- it follows every change of a slider, the seed or the time step made in the browser and sends
+  the whole state (θ, seed, time step or "the end of the episode", numbered) on one channel,
+  where the browser keeps the latest one: the last state the kernel receives is the state of
+  the last action;
+- "Show θ in the landscape" sends the θ the sliders show, with the click.
+
+The kernel draws the states it receives, and draws a change made from Python (``set_params``, a
+slider's value set in code) as before; the controls' own messages from the browser only keep
+their Python values up to date. Without that front-end part (a front end without anywidget) the
+panel falls back to drawing the controls' values.
+
+Redraws never overlap and never go stale: a change that arrives while a frame is being drawn
+(from another thread) is only noted, and the drawing thread draws once more, with the latest
+state, before it stops. A new episode costs about 60 ms (play it, draw its curves); a new time
+step only redraws the cursor and the cart (about 10 ms, ``EpisodeView.frame_png``). While ▶ Play
+runs, the browser draws the steps itself: the kernel sends the episode's picture without the
+moving parts and where they go at every step (``EpisodeView.overlay``) once, and the browser draws
+the cursor and the cart over it, 20 frames per second whatever the kernel is doing; when the play
+stops, the kernel's own frame of that step replaces it.
+
+**The layout never moves.** Every part has a fixed size: the status line (reward and why the
+episode ended, or what went wrong) has room for two lines and clips the rest (its tooltip holds
+all of it), and the picture keeps its size while an error is shown.
+
+If the policy raises ``NotImplementedError`` with a ``todo`` attribute (``hwlib._todo.TodoNotDone``,
+"TODO 1.1.1 is not done yet"), the status line says which TODO and what to do, in place of the
+reward; the panel works as soon as the TODO is done and the cell is run again.
 """
 
 from __future__ import annotations
@@ -19,10 +48,13 @@ from __future__ import annotations
 import contextlib
 import html
 import math
+import re
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+import anywidget
 import ipywidgets as widgets
+import traitlets
 
 from hwlib._checks import check_params, check_seed
 from hwlib.cartpole import (
@@ -35,7 +67,7 @@ from hwlib.cartpole import (
     Episode,
     play_episode,
 )
-from hwlib.plots.cartpole import EpisodeView, figure_png, how_it_ended
+from hwlib.plots.cartpole import EpisodeView, how_it_ended, message_png
 
 SLIDER_MIN, SLIDER_MAX, SLIDER_STEP = -2.0, 2.0, 0.01
 SLIDER_RANGE = (SLIDER_MIN, SLIDER_MAX)
@@ -45,9 +77,11 @@ SLIDER_LABELS = tuple(
     f"θ{SUBSCRIPTS[index]} · {name} [{unit}]" for index, (name, unit) in enumerate(zip(OBSERVATION_NAMES, OBSERVATION_UNITS))
 )
 DEFAULT_SEED = 0
-PLAY_INTERVAL_MS = 100  # one animation frame every 0.1 s ...
-PLAY_FRAMES = 100  # ... and at most ~100 frames per episode (a 500-step episode plays in ~10 s)
+PLAY_INTERVAL_MS = 50  # one animation frame every 0.05 s (20 frames per second) ...
+PLAY_FRAMES = 250  # ... and at most 250 frames per episode (a 500-step episode plays in 12.5 s)
 LANDSCAPE_BUTTON_LABEL = "Show θ in the landscape"
+FIGURE_DPI, FIGURE_WIDTH, FIGURE_HEIGHT = 80, 9.0, 4.4  # the panel's picture: 720 x 352 px
+STATUS_LINES = 2  # the status line's height, in lines of text
 
 
 def slider_grid_value(value):
@@ -109,7 +143,7 @@ class PanelFrame:
 
 
 def reward_text(episode):
-    """The panel's reward line, e.g. 'Total reward: 11 (the pole fell past 12°)'."""
+    """The panel's reward line, e.g. 'Total reward: 11 (the pole fell past ±0.21 rad = ±12°)'."""
     if not isinstance(episode, Episode):
         raise TypeError(f"episode must be an hwlib.cartpole.Episode, got {type(episode).__name__}")
     reward = int(episode.total_reward)
@@ -138,10 +172,36 @@ def render_panel(params, seed, step=None, view=None, episode=None):
         episode = simulate_episode(params, seed)
     elif not isinstance(episode, Episode):
         raise TypeError(f"episode must be an hwlib.cartpole.Episode or None, got {type(episode).__name__}")
-    view = EpisodeView() if view is None else view
-    view.show(episode, step)  # checks step
+    view = EpisodeView(FIGURE_DPI, FIGURE_WIDTH, FIGURE_HEIGHT) if view is None else view
+    png = view.frame_png(episode, step)  # checks step
     step = episode.num_steps if step is None else int(step)
-    return PanelFrame(episode, step, reward_text(episode), figure_png(view.figure))
+    return PanelFrame(episode, step, reward_text(episode), png)
+
+
+_ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def todo_message(error):
+    """The lines that say which TODO is not done yet, if ``error`` says so; otherwise None.
+
+    ``error`` says so when it is a ``NotImplementedError`` with a ``todo`` attribute (the kit's
+    ``TodoNotDone``). Its short message (``_render_traceback_``, what IPython shows) is used when
+    it has one, else "TODO x.y.z is not done yet: <its message>".
+    """
+    todo = getattr(error, "todo", None)
+    if not isinstance(error, NotImplementedError) or not todo:
+        return None
+    render = getattr(error, "_render_traceback_", None)
+    if callable(render):
+        try:
+            lines = [_ANSI_ESCAPE.sub("", str(line)).rstrip() for line in render()]
+        except Exception:  # noqa: BLE001 (a broken message must not break the panel: use the plain one)
+            lines = []
+        lines = [line for text in lines for line in text.splitlines() if line.strip()]
+        if lines:
+            return lines
+    detail = str(error).strip()
+    return [f"TODO {todo} is not done yet" + (f": {detail}" if detail and detail != str(todo) else "")]
 
 
 class LatestOnly:
@@ -191,6 +251,264 @@ class LatestOnly:
             self.request()
 
 
+# --- the front-end part -----------------------------------------------------------------------
+
+PANEL_ESM = r"""
+const modelId = (ref) => String(ref).replace(/^IPY_MODEL_/, "");
+// A change whose origin is the kernel arrives through the model's set_state, which holds
+// _state_lock while it sets the values; a change made in the browser does not.
+const fromKernel = (model) => model._state_lock !== null && model._state_lock !== undefined;
+
+function button(label, tooltip) {
+  const element = document.createElement("button");
+  element.className = "jupyter-widgets jupyter-button widget-button";
+  element.textContent = label;
+  element.title = tooltip;
+  return element;
+}
+
+async function render({ model, el }) {
+  const manager = model.widget_manager;
+  const controls = await Promise.all(model.get("controls").map((ref) => manager.get_model(modelId(ref))));
+  const params = controls.slice(0, 4), seed = controls[4], step = controls[5], play = controls[6];
+  // The panel's state as the browser has it: what the student did last is what it holds.
+  const local = { params: params.map((m) => m.get("value")), seed: seed.get("value"), step: null };
+  let seq = model.get("drawn");
+  let applying = false;
+  const send = () => {
+    seq += 1;
+    el.dataset.sent = String(seq);
+    model.set("state", { seq, params: [...local.params], seed: local.seed, step: local.step });
+    model.save_changes();
+  };
+  const listeners = [];
+  const listen = (control, handler) => {
+    control.on("change:value", handler);
+    listeners.push([control, handler]);
+  };
+  params.forEach((control, index) => listen(control, () => {
+    local.params[index] = control.get("value");
+    if (applying) return;
+    local.step = null;  // a new episode is shown at its end
+    if (!fromKernel(control)) send();
+  }));
+  listen(seed, () => {
+    local.seed = seed.get("value");
+    local.step = null;
+    if (!fromKernel(seed)) send();
+  });
+  listen(step, () => {
+    if (fromKernel(step)) return;  // the kernel showing a new episode's end, or an echo
+    local.step = step.get("value");
+    if (play.get("playing") && overlay.draw(local)) return;  // ▶ plays in the browser: no frame from the kernel
+    send();
+  });
+  const onPlaying = () => {
+    if (!play.get("playing") && overlay.shown) {
+      overlay.until = seq + 1;  // the kernel's own frame of the step where the play stopped replaces the overlay
+      send();
+    }
+  };
+  play.on("change:playing", onPlaying);
+
+  const presets = document.createElement("div");
+  presets.className = "hwlib-presets";
+  for (const preset of model.get("presets")) {
+    const element = button(preset.name, preset.tooltip);
+    element.addEventListener("click", () => {
+      applying = true;
+      try {
+        params.forEach((control, index) => {
+          control.set("value", preset.params[index]);
+          control.save_changes();
+        });
+      } finally {
+        applying = false;
+      }
+      local.params = [...preset.params];
+      local.step = null;
+      send();
+    });
+    presets.append(element);
+  }
+  const landscape = button("", "");
+  const icon = document.createElement("i");
+  icon.className = "fa fa-crosshairs";
+  landscape.append(icon, " " + model.get("landscape_label"));
+  landscape.addEventListener("click", () => model.send({ event: "send_params", params: [...local.params] }));
+  const showLandscape = () => {
+    landscape.disabled = !model.get("landscape_enabled");
+    landscape.title = model.get("landscape_tooltip");
+  };
+  showLandscape();
+  const overlay = playOverlay(model, el);
+  const showDrawn = () => {
+    el.dataset.drawn = String(model.get("drawn"));
+    if (overlay.until !== null && model.get("drawn") >= overlay.until) overlay.hide();
+  };
+  showDrawn();
+  model.on("change:landscape_enabled", showLandscape);
+  model.on("change:landscape_tooltip", showLandscape);
+  model.on("change:drawn", showDrawn);
+  el.classList.add("hwlib-panel-controls");
+  el.append(presets, landscape);
+  model.send({ event: "connected" });
+  return () => {
+    for (const [control, handler] of listeners) control.off("change:value", handler);
+    play.off("change:playing", onPlaying);
+    overlay.hide();
+  };
+}
+
+// While ▶ plays, the browser draws the time cursors and the cart over the episode's picture
+// without them (both from the kernel, once per episode): the kernel draws no frame per step, so
+// the play keeps its pace whatever the kernel is doing. When it stops, the kernel's frame returns.
+function playOverlay(model, el) {
+  const state = { shown: false, until: null, canvas: null, image: null, bitmap: null, data: null };
+  const load = async () => {
+    const data = model.get("overlay");
+    state.data = null;
+    state.bitmap = null;
+    const png = model.get("overlay_png");
+    if (!data || !png || !png.byteLength) return;
+    state.bitmap = await createImageBitmap(new Blob([png], { type: "image/png" }));
+    state.data = data;
+  };
+  model.on("change:overlay_png", load);
+  load();
+  const place = () => {
+    const panel = el.closest(".hwlib-slider-panel");
+    const image = panel && panel.querySelector("img.hwlib-episode");
+    if (!image) return false;
+    if (!state.canvas || state.image !== image) {
+      state.canvas?.remove();
+      state.canvas = document.createElement("canvas");
+      state.canvas.className = "hwlib-play-overlay";
+      image.insertAdjacentElement("afterend", state.canvas);
+      state.image = image;
+    }
+    const canvas = state.canvas;
+    canvas.width = image.naturalWidth || image.width;
+    canvas.height = image.naturalHeight || image.height;
+    canvas.style.left = image.offsetLeft + "px";
+    canvas.style.top = image.offsetTop + "px";
+    return true;
+  };
+  state.draw = (local) => {
+    const data = state.data;
+    if (!data || !state.bitmap || data.seed !== local.seed || data.params.some((value, i) => value !== local.params[i])) return false;
+    if (local.step === null || local.step > data.num_steps || !place()) return false;
+    const k = local.step, ctx = state.canvas.getContext("2d");
+    ctx.drawImage(state.bitmap, 0, 0);
+    ctx.strokeStyle = data.cursor.color;
+    ctx.lineWidth = data.cursor.width;
+    for (const cursor of data.cursors) {
+      ctx.beginPath();
+      ctx.moveTo(cursor.x[k], cursor.top);
+      ctx.lineTo(cursor.x[k], cursor.bottom);
+      ctx.stroke();
+    }
+    ctx.save();
+    ctx.beginPath();
+    ctx.rect(data.clip.left, data.clip.top, data.clip.width, data.clip.height);
+    ctx.clip();
+    ctx.fillStyle = data.cart.color;
+    ctx.fillRect(data.cart.left[k], data.cart.top, data.cart.width, data.cart.height);
+    ctx.strokeStyle = data.pole.color;
+    ctx.lineWidth = data.pole.width;
+    ctx.lineCap = "round";
+    ctx.beginPath();
+    ctx.moveTo(data.pole.x0[k], data.pole.y0);
+    ctx.lineTo(data.pole.x1[k], data.pole.y1[k]);
+    ctx.stroke();
+    ctx.fillStyle = data.axle.color;
+    ctx.beginPath();
+    ctx.arc(data.pole.x0[k], data.pole.y0, data.axle.radius, 0, 2 * Math.PI);
+    ctx.fill();
+    ctx.restore();
+    ctx.fillStyle = data.caption.color;
+    ctx.font = `${data.caption.size}px "DejaVu Sans", sans-serif`;
+    ctx.textAlign = "center";
+    ctx.fillText(`step ${k} of ${data.num_steps}` + (k === data.num_steps ? `: ${data.ending}` : ""), data.caption.x, data.caption.y);
+    state.canvas.style.display = "block";
+    state.shown = true;
+    state.until = null;
+    el.dataset.frames = String(Number(el.dataset.frames || 0) + 1);
+    return true;
+  };
+  state.hide = () => {
+    if (state.canvas) state.canvas.style.display = "none";
+    state.shown = false;
+    state.until = null;
+  };
+  return state;
+}
+
+export default { render };
+"""
+
+PANEL_CSS = f"""
+.hwlib-slider-panel {{ position: relative; }}
+.hwlib-play-overlay {{ position: absolute; display: none; pointer-events: none; }}
+.hwlib-panel-controls {{ display: flex; flex-direction: column; gap: 4px; }}
+.hwlib-presets {{ display: flex; gap: 4px; }}
+.hwlib-panel-controls .widget-button {{ width: auto; margin: 0; }}
+.hwlib-status .widget-html-content {{
+  display: -webkit-box; -webkit-box-orient: vertical; -webkit-line-clamp: {STATUS_LINES};
+  overflow: hidden; white-space: normal; line-height: 1.4em; height: {1.4 * STATUS_LINES}em;
+}}
+"""
+
+
+class PanelControls(anywidget.AnyWidget):
+    """The panel's front-end part: the preset and landscape buttons, and the state as the browser has it.
+
+    ``controls``: the four θ sliders, the seed box, the time step slider and the Play (their browser
+    models are followed). ``overlay`` and ``overlay_png``: what the browser draws ▶ Play with (see
+    ``EpisodeView.overlay``), for the ``params`` and ``seed`` they name. ``state`` (browser → kernel): ``{"seq", "params", "seed", "step"}`` after each
+    action, ``step`` None for "the end of the episode". ``drawn``: the ``seq`` of the last state the
+    kernel has drawn (the browser shows it as ``data-drawn``, and the state it sent as ``data-sent``).
+    """
+
+    _esm = PANEL_ESM
+    _css = PANEL_CSS
+    controls = traitlets.List(trait=traitlets.Instance(widgets.Widget)).tag(sync=True, **widgets.widget_serialization)
+    presets = traitlets.List().tag(sync=True)
+    landscape_label = traitlets.Unicode(LANDSCAPE_BUTTON_LABEL).tag(sync=True)
+    landscape_tooltip = traitlets.Unicode(LANDSCAPE_TOOLTIP_UNCONNECTED).tag(sync=True)
+    landscape_enabled = traitlets.Bool(False).tag(sync=True)
+    state = traitlets.Any(None).tag(sync=True, echo_update=False)  # checked by parse_frontend_state
+    drawn = traitlets.Int(0).tag(sync=True)
+    overlay = traitlets.Dict(allow_none=True, default_value=None).tag(sync=True)
+    overlay_png = traitlets.Bytes(b"").tag(sync=True)
+
+
+@dataclass(frozen=True)
+class PanelState:
+    """What the panel shows: the weights, the seed, and the time step (None: the episode's end)."""
+
+    params: tuple
+    seed: int
+    step: int | None = None
+    seq: int = 0  # the browser's number for this state (0: a change made in the kernel)
+
+
+def parse_frontend_state(state):
+    """The ``PanelState`` the browser sent, checked; ValueError if it is not one."""
+    if not isinstance(state, dict):
+        raise ValueError(f"the panel's state must be a dict, got {type(state).__name__}")
+    params = grid_params(state.get("params"), "state['params']")
+    seed = check_seed(state.get("seed"), "state['seed']")
+    if seed >= SEED_BOUND:
+        raise ValueError(f"state['seed'] must be below {SEED_BOUND}, got {seed}")
+    step, seq = state.get("step"), state.get("seq", 0)
+    if step is not None and (isinstance(step, bool) or not isinstance(step, int) or step < 0):
+        raise ValueError(f"state['step'] must be None or a non-negative integer, got {step!r}")
+    if isinstance(seq, bool) or not isinstance(seq, int):
+        raise ValueError(f"state['seq'] must be an integer, got {seq!r}")
+    return PanelState(params, seed, step, seq)
+
+
 class SliderPanel:
     """The ipywidgets panel. Display it (or ``panel.widget``) in a notebook.
 
@@ -203,12 +521,17 @@ class SliderPanel:
         seed = check_seed(seed, "seed")
         if seed >= SEED_BOUND:
             raise ValueError(f"seed must be below {SEED_BOUND}, got {seed}")
-        self.view = EpisodeView()
+        self.view = EpisodeView(FIGURE_DPI, FIGURE_WIDTH, FIGURE_HEIGHT)
         self.episode = None
+        self.not_done = None  # the TodoNotDone the policy raised, while it does
         self._episode_key = None
         self._listeners = []
         self._writing = threading.local()  # set while the panel itself moves the time step
         self._params_lock = threading.Lock()  # one set_params at a time
+        self._state_lock = threading.Lock()
+        self._state = PanelState(tuple(params), seed)
+        self._frontend = False  # True once the browser's part speaks: it then sends the state
+        self._overlay_key = None  # the (params, seed) whose overlay the browser has for ▶ Play
 
         self.param_sliders = [
             widgets.FloatSlider(
@@ -223,16 +546,12 @@ class SliderPanel:
             value=seed, min=0, max=SEED_BOUND - 1, description="seed", tooltip=SEED_TOOLTIP,
             style={"description_width": "3em"}, layout=widgets.Layout(width="13em"),
         )
-        self.preset_buttons = [
-            widgets.Button(description=name, tooltip=PRESET_TOOLTIPS[name], layout=widgets.Layout(width="auto"))
-            for name in PRESETS
-        ]
-        self.landscape_button = widgets.Button(
-            description=LANDSCAPE_BUTTON_LABEL, tooltip=LANDSCAPE_TOOLTIP_UNCONNECTED, disabled=True, icon="crosshairs",
-            layout=widgets.Layout(width="auto"),
+        self.reward_label = widgets.HTML(
+            tooltip=REWARD_TOOLTIP,
+            layout=widgets.Layout(width="auto", align_self="stretch", height=f"{1.4 * STATUS_LINES + 0.4:.1f}em", overflow="hidden"),
         )
-        self.reward_label = widgets.HTML(tooltip=REWARD_TOOLTIP, layout=widgets.Layout(min_width="16em"))
         self.reward_label.add_class("hwlib-reward")
+        self.reward_label.add_class("hwlib-status")
         self.step_slider = widgets.IntSlider(
             value=0, min=0, max=0, description="time step", tooltip=STEP_TOOLTIP, continuous_update=True,
             style={"description_width": "5em"}, layout=widgets.Layout(width="36em"),
@@ -240,24 +559,28 @@ class SliderPanel:
         # No description: ipywidgets 8 shows a Play's tooltip only when its description is empty.
         self.play = widgets.Play(value=0, min=0, max=0, interval=PLAY_INTERVAL_MS, tooltip=PLAY_TOOLTIP, show_repeat=False)
         self.play_link = widgets.jslink((self.play, "value"), (self.step_slider, "value"))  # runs in the browser
-        # No tooltip on the image: ipywidgets 8's Image view fails to render with one.
-        self.image = widgets.Image(format="png", layout=widgets.Layout(max_width="100%", height="auto", align_self="flex-start"))
+        self.controls = PanelControls(
+            controls=[*self.param_sliders, self.seed_box, self.step_slider, self.play],
+            presets=[{"name": name, "params": list(values), "tooltip": PRESET_TOOLTIPS[name]} for name, values in PRESETS.items()],
+        )
+        # No tooltip on the image: ipywidgets 8's Image view fails to render with one. Its size is
+        # fixed (the figure's), so nothing below or beside it moves while an error is shown.
+        width, height = round(FIGURE_DPI * FIGURE_WIDTH), round(FIGURE_DPI * FIGURE_HEIGHT)
+        self.image = widgets.Image(
+            format="png", layout=widgets.Layout(width=f"{width}px", height=f"{height}px", align_self="flex-start", flex="0 0 auto"),
+        )
         self.image.add_class("hwlib-episode")
 
         self.widget = widgets.VBox([
             widgets.HBox(
                 [
-                    widgets.VBox(self.param_sliders),
-                    widgets.VBox([
-                        widgets.HBox(self.preset_buttons),
-                        self.seed_box,
-                        self.reward_label,
-                        self.landscape_button,
-                    ]),
+                    widgets.VBox(self.param_sliders, layout=widgets.Layout(flex="0 0 auto")),
+                    widgets.VBox([self.seed_box, self.controls], layout=widgets.Layout(flex="0 0 auto")),
                 ],
-                layout=widgets.Layout(flex_flow="row wrap"),
+                layout=widgets.Layout(flex_flow="row nowrap"),
             ),
-            widgets.HBox([self.play, self.step_slider]),
+            widgets.HBox([self.play, self.step_slider], layout=widgets.Layout(flex_flow="row nowrap")),
+            self.reward_label,
             self.image,
         ])
         self.widget.add_class("hwlib-slider-panel")
@@ -266,17 +589,22 @@ class SliderPanel:
         self._redraws = LatestOnly(self._draw)
         for control in [*self.param_sliders, self.seed_box, self.step_slider]:
             control.observe(self._on_control_change, names="value")
-        for button in self.preset_buttons:
-            button.on_click(self._on_preset)
-        self.landscape_button.on_click(lambda _button: self.send_params())
+        self.controls.observe(self._on_frontend_state, names="state")
+        self.play.observe(lambda _change: self._redraws.request(), names="playing")
+        self.controls.on_msg(self._on_frontend_message)
 
     def _repr_mimebundle_(self, **kwargs):
         return self.widget._repr_mimebundle_(**kwargs)
 
     @property
     def params(self):
-        """The four weights the sliders show, as a tuple of floats."""
-        return tuple(float(slider.value) for slider in self.param_sliders)
+        """The four weights the panel shows, as a tuple of floats."""
+        return tuple(float(value) for value in self._state.params)
+
+    @property
+    def state(self):
+        """The ``PanelState`` the panel shows (or is about to show)."""
+        return self._state
 
     def set_params(self, params):
         """Move the sliders to ``params`` (within [-2, 2], put on the 0.01 grid) and redraw once."""
@@ -285,6 +613,14 @@ class SliderPanel:
         with self._redraws.held(), self._params_lock:
             for slider, value in zip(self.param_sliders, params):
                 slider.value = value
+            with self._state_lock:
+                self._state = replace(self._state, params=params, step=None, seq=0)
+
+    def apply_preset(self, name):
+        """Move the sliders to the preset ``name`` ("always left" or "always right"), as its button does."""
+        if name not in PRESETS:
+            raise ValueError(f"name must be one of the presets {list(PRESETS)}, got {name!r}")
+        self.set_params(PRESETS[name])
 
     def refresh(self):
         """Redraw for the controls as they are now (from any thread; see ``LatestOnly``)."""
@@ -298,16 +634,16 @@ class SliderPanel:
         if not callable(callback):
             raise TypeError(f"callback must be callable as callback(params), got {type(callback).__name__}")
         self._listeners.append(callback)
-        self.landscape_button.disabled = False
-        self.landscape_button.tooltip = LANDSCAPE_TOOLTIP_CONNECTED
+        self.controls.landscape_enabled = True
+        self.controls.landscape_tooltip = LANDSCAPE_TOOLTIP_CONNECTED
         return callback
 
-    def send_params(self):
-        """Call every listener registered with ``on_send_params`` with the current weights.
+    def send_params(self, params=None):
+        """Call every listener registered with ``on_send_params`` with ``params`` (default: the panel's weights).
 
         Every listener is called even if one raises; the first error is raised afterwards.
         """
-        params = self.params
+        params = self.params if params is None else grid_params(params, "params")
         first_error = None
         for listener in list(self._listeners):
             try:
@@ -317,48 +653,110 @@ class SliderPanel:
         if first_error is not None:
             raise first_error
 
+    # --- what the browser and the kernel change ---------------------------------------------------
+
+    def _on_control_change(self, change):
+        if getattr(self._writing, "active", False):
+            return  # the panel's own move of the time step, already part of the frame being drawn
+        control = change.owner
+        if self._frontend and "value" in control._property_lock:
+            return  # the control's own message from the browser: the browser's state carries it, in order
+        with self._state_lock:
+            state = self._state
+            if control is self.step_slider:
+                self._state = replace(state, step=int(change.new), seq=0)
+            elif control is self.seed_box:
+                self._state = replace(state, seed=int(change.new), step=None, seq=0)
+            else:
+                params = list(state.params)
+                params[self.param_sliders.index(control)] = float(change.new)
+                self._state = replace(state, params=tuple(params), step=None, seq=0)
+        self._redraws.request()
+
+    def _on_frontend_state(self, change):
+        if change.new is None:
+            return
+        try:
+            state = parse_frontend_state(change.new)
+        except (TypeError, ValueError):
+            return  # not a state the panel's front end sends: leave the panel as it is
+        self._frontend = True
+        with self._state_lock:
+            self._state = state
+        self._redraws.request()
+
+    def _on_frontend_message(self, _widget, content, _buffers):
+        if not isinstance(content, dict):
+            return
+        if content.get("event") == "connected":
+            self._frontend = True
+        elif content.get("event") == "send_params":
+            self.send_params(content.get("params"))
+
     # --- drawing ------------------------------------------------------------------------------
 
     def _draw(self, raise_errors=False):
-        """Draw one frame for the controls' current values (only ever one thread at a time)."""
-        params, seed = self.params, int(self.seed_box.value)
+        """Draw one frame for the panel's current state (only ever one thread at a time)."""
+        with self._state_lock:
+            state = self._state
+        params, seed = state.params, state.seed
         try:
             if self.episode is None or self._episode_key != (params, seed):
+                self.episode, self._episode_key = None, None
                 episode = simulate_episode(params, seed)
                 self.episode, self._episode_key = episode, (params, seed)
-                step = episode.num_steps  # a new episode is shown at its end: where and why it stopped
-                self._move_time_step(episode.num_steps, step)
-            else:
-                step = min(int(self.step_slider.value), self.episode.num_steps)
+                self._move_time_step(episode.num_steps)
+            step = self.episode.num_steps if state.step is None else min(state.step, self.episode.num_steps)
             frame = render_panel(params, seed, step=step, view=self.view, episode=self.episode)
         except Exception as error:
-            if raise_errors:
+            lines = todo_message(error)
+            if raise_errors and lines is None:
                 raise
-            self.episode, self._episode_key = None, None
-            self.reward_label.value = (
-                f"<b>Could not play the episode</b>: {html.escape(type(error).__name__)}: {html.escape(str(error))}"
-            )
+            self._show_error(error, lines)
             return
+        self.not_done = None
+        # The time step slider shows the step drawn when the panel chose it (a new episode's end, or the
+        # end of one shorter than the step asked for). A step the browser asked for is its own value
+        # already: writing it back late would pull ▶ Play back to a step it has passed.
+        if (state.step is None or state.step != step) and self.step_slider.value != step:
+            self._writing.active = True
+            try:
+                self.step_slider.value = step
+            finally:
+                self._writing.active = False
         self.reward_label.value = f"<b>{html.escape(frame.reward_text)}</b>"
+        self.reward_label.tooltip = REWARD_TOOLTIP
         self.image.value = frame.png
+        if self.play.playing and self._overlay_key != (params, seed):
+            # ▶ plays: the browser draws the steps over the episode's picture, with this
+            data = self.view.overlay(self.episode)
+            self.controls.overlay = {**data, "params": list(params), "seed": seed}
+            self.controls.overlay_png = self.view.background_png(self.episode)
+            self._overlay_key = (params, seed)
+        self.controls.drawn = max(self.controls.drawn, state.seq)
 
-    def _move_time_step(self, num_steps, step):
+    def _show_error(self, error, todo_lines):
+        """Say what went wrong in the status line, and in the picture, whose size stays."""
+        self.episode, self._episode_key = None, None
+        if todo_lines is not None:
+            self.not_done = error
+            lines = todo_lines
+            text = "<br>".join(f"<b>{html.escape(line)}</b>" if index == 0 else html.escape(line) for index, line in enumerate(lines))
+        else:
+            lines = ["Could not play the episode", f"{type(error).__name__}: {error}"]
+            text = f"<b>Could not play the episode</b>: {html.escape(type(error).__name__)}: {html.escape(str(error))}"
+        self.reward_label.value = text
+        self.reward_label.tooltip = "\n".join(lines)  # all of it, however long
+        self.image.value = message_png(lines, self.view.figure.get_size_inches(), self.view.figure.dpi)
+
+    def _move_time_step(self, num_steps):
         self._writing.active = True
         try:
             for control in (self.step_slider, self.play):
                 control.max = num_steps  # first the max, so the value is never clamped to the old one
             self.play.step = max(1, math.ceil(num_steps / PLAY_FRAMES))
-            self.step_slider.value = step
         finally:
             self._writing.active = False
-
-    def _on_control_change(self, _change):
-        if getattr(self._writing, "active", False):
-            return  # the panel's own move of the time step, already part of the frame being drawn
-        self._redraws.request()
-
-    def _on_preset(self, button):
-        self.set_params(PRESETS[button.description])
 
 
 def slider_panel(params=None, seed=DEFAULT_SEED):

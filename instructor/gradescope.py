@@ -5,9 +5,11 @@
 At the zip's root:
 
 * ``setup.sh``: run once by Gradescope, as root, while it builds the image (the only time the
-  network is used): Python with ``venv``, bubblewrap where the image's packages have it, and a
-  virtual environment in ``/autograder/venv`` with the packages the graded code imports
-  (``requirements.txt``: the kit's own lines for them);
+  network is used): Python with ``venv``, bubblewrap where the image's packages have it, the
+  unprivileged-user fallback (``setpriv``, Debian's ``python3-seccomp``, the users ``hwgrade1``..8),
+  and a virtual environment in ``/autograder/venv`` with the packages the graded code imports
+  (``requirements.txt``: the kit's own lines for them); what runs later is made root's to write,
+  ``source/`` root's alone; the log's last line says which isolation will grade;
 * ``run_autograder``: run for each submission; grades ``/autograder/submission`` with
   ``python -m hwtools.grade.gradescope`` and writes ``/autograder/results/results.json``. Paths
   come from ``AUTOGRADER_ROOT`` (default ``/autograder``) and ``AUTOGRADER_PYTHON`` (default the
@@ -30,6 +32,8 @@ import sys
 import zipfile
 from pathlib import Path
 
+from instructor.kit import kit_files
+
 BUNDLED = ("hwlib/", "hwtools/", "instructor/hidden_checks/")  # path prefixes of the kit in the bundle
 LEFT_OUT = ("hwtools/grade/answer_key.json",)  # the student edition's key: the bundle grades with the reference
 GRADING_REQUIREMENTS = ("numpy", "gymnasium")  # what hwlib imports when the grader's worker loads it
@@ -38,16 +42,18 @@ FIXED_TIME = (1980, 1, 1, 0, 0, 0)
 SETUP_SH = """\
 #!/usr/bin/env bash
 # Gradescope runs this once, as root, while it builds the autograder's image: the only step with
-# network access. It installs Python, bubblewrap (the sandbox for students' code) where the image
-# has it, and a virtual environment with the packages the graded code imports.
+# network access. It installs Python, bubblewrap (the sandbox for students' code) and, for
+# containers where bubblewrap cannot create namespaces, the fallback's tools (setpriv, and
+# python3-seccomp for the filter that refuses network sockets) and its users; then a virtual
+# environment with the packages the graded code imports, and says which isolation will be used.
 set -euo pipefail
 ROOT="${AUTOGRADER_ROOT:-/autograder}"
 SOURCE="$ROOT/source"
 export DEBIAN_FRONTEND=noninteractive PIP_DISABLE_PIP_VERSION_CHECK=1
 apt-get update -qq
-apt-get install -y -qq --no-install-recommends python3 python3-venv python3-pip util-linux >/dev/null
+apt-get install -y -qq --no-install-recommends python3 python3-venv python3-pip util-linux python3-seccomp >/dev/null
 if ! apt-get install -y -qq --no-install-recommends bubblewrap >/dev/null; then
-    echo "bubblewrap is not available: submissions will be graded without the sandbox (results say NOT ISOLATED)"
+    echo "bubblewrap is not available: submissions will be graded by the unprivileged-user fallback"
 fi
 python3 -c 'import sys; assert sys.version_info >= (3, 10), "the kit needs Python 3.10 or newer"'
 python3 -m venv "$ROOT/venv"
@@ -55,11 +61,18 @@ python3 -m venv "$ROOT/venv"
 chmod +x "$SOURCE/run_autograder"
 cd "$SOURCE"
 "$ROOT/venv/bin/python" -c "import numpy, gymnasium, hwtools.grade"
-# Says in the image build's log whether the sandbox works in Gradescope's containers.
+# The fallback's users (one per run at a time): hwgrade1..hwgrade8, no login, no home.
+"$ROOT/venv/bin/python" -m hwtools.grade.user_sandbox create
+# What runs later is root's to change: the sandbox's users may run the venv, never write it.
+chown -R root:root "$ROOT/venv" "$SOURCE"
+chmod -R go-w "$ROOT/venv" "$SOURCE"
+chmod 755 "$ROOT" "$ROOT/venv"
+chmod 700 "$SOURCE"
+# Says in the image build's log which isolation grades the submissions (bwrap, user or none).
 "$ROOT/venv/bin/python" -c "
-from hwtools.grade.sandbox import probe_isolation
-works, how = probe_isolation('$ROOT/venv/bin/python')
-print(('sandbox: ' if works else 'NOT ISOLATED: ') + how)"
+from hwtools.grade.sandbox import Sandbox
+box = Sandbox('$ROOT/venv/bin/python')
+print('isolation:', box.kind, '-', box.how if box.isolated else 'NOT ISOLATED: ' + box.how)"
 """
 
 RUN_AUTOGRADER = """\
@@ -102,7 +115,6 @@ def bundle_files(source):
     """{name in the zip: (bytes, executable)} of the bundle for the instructor's kit at ``source``."""
     from hwtools.grade.grader import HIDDEN_CHECKS, has_solutions  # noqa: PLC0415 - numpy only when building
     from hwtools.grade.gradescope import BUNDLE_MARKER  # noqa: PLC0415
-    from instructor.release import kit_files  # noqa: PLC0415
 
     source = Path(source).resolve()
     if not has_solutions(source):

@@ -1,4 +1,5 @@
-"""A throwaway JupyterLab server for the browser test, and the Chromium it is driven with.
+"""A throwaway JupyterLab server for the browser tests, the Chromium they drive it with, and the
+helpers that drive a notebook in it like a student (open, Run All, read errors, add a cell).
 
 (Named so as not to shadow the ``jupyter_server`` and ``jupyterlab_server`` packages.)
 
@@ -15,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import secrets
 import signal
 import socket
@@ -224,3 +226,172 @@ def running_jupyterlab(root_dir, tmp_dir):
         if port_in_use(port):
             raise RuntimeError(f"port {port} still answers after JupyterLab was stopped")
 
+
+
+# --- driving a notebook in JupyterLab like a student (Playwright pages) -------------------------------
+#
+# Shared by the browser tests: open a notebook, Run All, find the outputs a student reads as errors,
+# add and run a cell. Every wait is bounded, and a Run All ends as soon as a cell fails.
+
+OPEN_TIMEOUT_MS = 60_000  # JupyterLab loaded, notebook shown, kernel idle
+RUN_TIMEOUT_S = 480  # all cells of one notebook run (p1 takes ~25 s on a quiet 2-core machine, minutes when 8 jobs share it)
+CELL_TIMEOUT_S = 300  # one cell running this long with no other cell finishing: the run has hung
+CLEAR_TIMEOUT_MS = 30_000
+STOPPED_S = 3  # no cell queued or running for this long: the Run All has ended
+
+# How JupyterLab 4 shows an exception: not as an "application/vnd.jupyter.error" output (it never
+# renders that mime type) but as a stderr output holding the traceback, or the short message of an
+# exception with _render_traceback_ ("TODO 1.1.1 is not done yet: ..."). A warning or a print to
+# stderr is not an error.
+ERROR_TEXT = r"Traceback \(most recent call last\)|^\s*[A-Za-z_][\w.]*(Error|Exception|Interrupt|Exit)\b.*:|is not done yet"
+ERROR_OUTPUTS_JS = r"""(root) => {
+    const errorText = new RegExp(%r, 'm');
+    const cells = [...(root || document).querySelectorAll('.jp-NotebookPanel:not(.lm-mod-hidden) .jp-Notebook .jp-Cell')];
+    const found = [];
+    cells.forEach((cell, index) => {
+        for (const output of cell.querySelectorAll('.jp-OutputArea-output')) {
+            const mime = output.dataset.mimeType;
+            if (mime === 'application/vnd.jupyter.error'
+                || (mime === 'application/vnd.jupyter.stderr' && errorText.test(output.textContent))) {
+                found.push({cell: index, text: output.textContent});
+            }
+        }
+    });
+    return found;
+}""" % ERROR_TEXT
+
+CELL_STATE_JS = """() => {
+    const panel = document.querySelector('.jp-NotebookPanel:not(.lm-mod-hidden)');
+    const prompts = panel ? [...panel.querySelectorAll('.jp-CodeCell .jp-InputPrompt')].map(element => element.textContent.trim()) : [];
+    const errors = (%s)(panel).length;
+    return {prompts, errors};
+}""" % ERROR_OUTPUTS_JS
+
+
+def watch_kernel_errors(page):
+    """Collect the exceptions the kernel reports on the page's websockets (iopub "error" messages), as
+    a list of {"ename", "evalue"} that fills as they arrive: what JupyterLab renders as error outputs."""
+    found = []
+
+    def on_frame(payload):
+        message = parse_kernel_frame(payload)
+        if message and message.get("channel") == "iopub" and message["header"].get("msg_type") == "error":
+            found.append({key: message["content"].get(key) for key in ("ename", "evalue")})
+
+    page.on("websocket", lambda socket: socket.on("framereceived", on_frame))
+    return found
+
+
+def parse_kernel_frame(payload):
+    """One websocket frame of JupyterLab's kernel protocol (v1.kernel.websocket.jupyter.org: uint64
+    offsets, then channel, header, parent header, metadata, content) or of the JSON protocol; None
+    for any other frame."""
+    try:
+        if isinstance(payload, (bytes, bytearray)):
+            count = int.from_bytes(payload[:8], "little")
+            offsets = [int.from_bytes(payload[8 * (index + 1):8 * (index + 2)], "little") for index in range(count)]
+            parts = [payload[start:end] for start, end in zip(offsets, offsets[1:])]
+            channel, header, _parent, _metadata, content = (part.decode() for part in parts[:5])
+            return {"channel": channel, "header": json.loads(header), "content": json.loads(content)}
+        message = json.loads(payload)
+        if isinstance(message, dict) and "header" in message and "channel" in message:
+            return message
+    except (ValueError, UnicodeDecodeError, IndexError):
+        pass
+    return None
+
+
+def new_page(browser, default_timeout_ms=30_000):
+    """A new tab that keeps the browser console's errors (``page.console_errors``) and the kernel's
+    exceptions (``page.kernel_errors``)."""
+    page = browser.new_page()
+    page.set_default_timeout(default_timeout_ms)
+    console_errors = []
+    page.on("console", lambda message: console_errors.append(message.text) if message.type == "error" else None)
+    page.console_errors = console_errors
+    page.kernel_errors = watch_kernel_errors(page)
+    return page
+
+
+def console_summary(page):
+    errors = getattr(page, "console_errors", [])
+    return "\nbrowser console errors:\n" + "\n".join(errors[-20:]) if errors else ""
+
+
+def wait_for_idle_kernel(page, timeout_ms):
+    """The status bar's kernel item reads "Python 3 (ipykernel) | Idle"."""
+    page.locator("#jp-main-statusbar .jp-StatusBar-TextItem", has_text=re.compile(r"\| Idle$")).first.wait_for(timeout=timeout_ms)
+
+
+def open_notebook(page, lab, path):
+    """Open ``path`` (relative to the server's root) in a fresh workspace and wait for an idle kernel."""
+    page.goto(lab.url(path), timeout=OPEN_TIMEOUT_MS)
+    page.locator(".jp-NotebookPanel .jp-Notebook .jp-Cell").first.wait_for(timeout=OPEN_TIMEOUT_MS)
+    wait_for_idle_kernel(page, OPEN_TIMEOUT_MS)
+
+
+def menu(page, menu_name, item_label):
+    page.locator(".lm-MenuBar-item", has_text=re.compile(rf"^{re.escape(menu_name)}$")).click()
+    page.locator(".lm-Menu-item:visible .lm-Menu-itemLabel", has_text=re.compile(rf"^{re.escape(item_label)}$")).click()
+
+
+def error_outputs(page):
+    """The outputs a student reads as errors, as [{"cell": index, "text": ...}], in cell order."""
+    return page.evaluate(ERROR_OUTPUTS_JS)
+
+
+def run_all_cells(page, timeout_s=RUN_TIMEOUT_S, cell_timeout_s=CELL_TIMEOUT_S):
+    """Clear every output, then Run > Run All Cells, and wait until every code cell has run or a cell
+    failed (JupyterLab stops a Run All there: no cell is queued any more). Returns {"prompts", "errors"}
+    (errors: the count of error outputs). Fails if no cell finished for ``cell_timeout_s`` or the run
+    took ``timeout_s``."""
+    menu(page, "Edit", "Clear Outputs of All Cells")
+    page.wait_for_function(
+        "() => document.querySelectorAll('.jp-NotebookPanel:not(.lm-mod-hidden) .jp-OutputArea-output').length === 0",
+        timeout=CLEAR_TIMEOUT_MS,
+    )
+    menu(page, "Run", "Run All Cells")
+    started = last_change = time.monotonic()
+    last_prompts, stopped_since = None, None
+    while True:
+        state = page.evaluate(CELL_STATE_JS)
+        pending = any(prompt == "[*]:" for prompt in state["prompts"])
+        all_ran = bool(state["prompts"]) and all(re.fullmatch(r"\[\d+\]:", prompt) for prompt in state["prompts"])
+        if not pending and (all_ran or state["errors"] > 0):
+            break
+        now = time.monotonic()
+        # A Run All queues every cell ([*]) at once: none queued any more means the run has stopped,
+        # at an error even if no output shows one (the caller sees the cells that did not run).
+        stopped_since = (stopped_since or now) if not pending and state["prompts"] else None
+        if stopped_since is not None and now - stopped_since > STOPPED_S:
+            break
+        if state["prompts"] != last_prompts:
+            last_prompts, last_change = state["prompts"], now
+        running = [index for index, prompt in enumerate(state["prompts"]) if prompt == "[*]:"][:1]
+        if now - last_change > cell_timeout_s:
+            raise TimeoutError(f"Run All: no code cell finished for {cell_timeout_s} s (running: code cell {running}); "
+                               f"prompts {state['prompts']}" + console_summary(page))
+        if now - started > timeout_s:
+            raise TimeoutError(f"Run All took more than {timeout_s} s (running: code cell {running})" + console_summary(page))
+        time.sleep(0.25)
+    wait_for_idle_kernel(page, cell_timeout_s * 1000)
+    return page.evaluate(CELL_STATE_JS)
+
+
+def run_in_new_cell(page, code, timeout_ms=60_000):
+    """Add a code cell at the end of the open notebook, type ``code`` into it and run it; return the
+    texts of its outputs once the kernel is idle again."""
+    cells = page.locator(".jp-NotebookPanel:not(.lm-mod-hidden) .jp-Notebook .jp-Cell")
+    count = cells.count()
+    cells.last.locator(".jp-InputPrompt").click()  # select the last cell (command mode)
+    page.keyboard.press("Escape")
+    page.keyboard.press("b")  # insert a cell below
+    page.wait_for_function(f"() => document.querySelectorAll('.jp-NotebookPanel:not(.lm-mod-hidden) .jp-Notebook .jp-Cell').length > {count}")
+    cell = cells.nth(count)
+    cell.locator(".cm-content").click()
+    page.keyboard.insert_text(code)
+    page.keyboard.press("Shift+Enter")
+    prompt = cell.locator(".jp-InputPrompt")
+    page.wait_for_function("element => /^\\[\\d+\\]:$/.test(element.textContent.trim())", arg=prompt.element_handle(), timeout=timeout_ms)
+    wait_for_idle_kernel(page, timeout_ms)
+    return cell.locator(".jp-OutputArea-output").all_inner_texts()

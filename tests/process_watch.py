@@ -1,26 +1,69 @@
-"""Which processes are still alive: for the tests that prove a run leaves nothing behind."""
+"""Which processes of THIS test run are still alive: for the tests that prove a run leaves nothing behind.
 
+Only this process's own descendants are looked at, so another grader or test run sharing the
+machine is never counted. On import this process becomes a child subreaper
+(``prctl(PR_SET_CHILD_SUBREAPER)``): a process that leaves its parent (a double fork, ``setsid``)
+is then re-parented to this process instead of the machine's init, and stays in its tree, where
+the scan finds it. Inside bubblewrap, orphans go to the sandbox's own init, a descendant too.
+"""
+
+import ctypes
 import os
 import time
 from pathlib import Path
 
+PR_SET_CHILD_SUBREAPER = 36
+
+
+def become_subreaper():
+    """Make this process the reaper of its orphaned descendants (Linux); True when it is."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+SUBREAPER = become_subreaper()
+
+
+def _table():
+    """{pid: (parent pid, state, command line)} of every process on the machine."""
+    table = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            stat = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()
+            cmdline = Path(f"/proc/{entry}/cmdline").read_bytes()
+        except (OSError, IndexError):
+            continue
+        table[int(entry)] = (int(stat[1]), stat[0], cmdline)
+    return table
+
+
+def descendants(table, root):
+    """The pids below ``root`` in ``table``."""
+    children = {}
+    for pid, (parent, _, _) in table.items():
+        children.setdefault(parent, []).append(pid)
+    found, pending = set(), [root]
+    while pending:
+        for child in children.get(pending.pop(), []):
+            if child not in found:
+                found.add(child)
+                pending.append(child)
+    return found
+
 
 def live_processes(matches, settle=3.0):
-    """The pids of live processes (zombies excluded) whose command line ``matches(cmdline bytes)``;
-    processes that were just killed get up to ``settle`` seconds to go."""
+    """The pids of this run's live descendants (zombies excluded) whose command line
+    ``matches(cmdline bytes)``; processes that were just killed get up to ``settle`` seconds to go."""
     deadline = time.monotonic() + settle
     while True:
-        found = set()
-        for entry in os.listdir("/proc"):
-            if not entry.isdigit():
-                continue
-            try:
-                cmdline = Path(f"/proc/{entry}/cmdline").read_bytes()
-                state = Path(f"/proc/{entry}/stat").read_text().rsplit(")", 1)[1].split()[0]
-            except (OSError, IndexError):
-                continue
-            if state != "Z" and matches(cmdline):
-                found.add(int(entry))
+        table = _table()
+        found = {pid for pid in descendants(table, os.getpid())
+                 if table[pid][1] != "Z" and matches(table[pid][2])}
         if not found or time.monotonic() > deadline:
             return found
         time.sleep(0.1)

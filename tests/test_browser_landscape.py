@@ -41,7 +41,7 @@ from test_browser import (  # noqa: F401  (browser, chromium and page are fixtur
     screenshot_on_failure,
 )
 
-pytestmark = pytest.mark.browser
+pytestmark = [pytest.mark.browser, pytest.mark.timeout(900)]
 
 EXPLORER_CALL = "LandscapeExplorer("
 CELLS_NOTEBOOK = "landscape_section.ipynb"
@@ -226,7 +226,7 @@ def test_landscape_explorer_switches_axes_in_jupyterlab(page, lab, notebook_name
 def check_landscape_explorer(page, lab, notebook_name):
     from hwlib.landscape import AXIS_LABELS
 
-    open_notebook(page, lab, notebook_name)
+    open_notebook(page, lab, f"notebooks/{notebook_name}")
     state = run_all_cells(page)
     check_ran_cleanly(page, state, notebook_name)
 

@@ -15,16 +15,20 @@ import os
 import re
 import shutil
 import signal
+import struct
 import subprocess
 import sys
 import time
+import tracemalloc
+import unicodedata
 import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, TODOS, Grader, blocks, checks, classroom, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, TODOS, Grader, blocks, checks, classroom, submissions, write_answer_key
+from hwtools.grade.gradebook import gradebook_header
 from hwtools.grade.grader import read_answer_key
 
 KIT = Path(__file__).resolve().parents[1]
@@ -38,7 +42,7 @@ AUTO_TODOS = [todo.id for todo in TODOS if todo.auto]
 # What each wrong solution keeps of its own TODO's points (every other TODO keeps all of its own).
 WRONG_KEPT = {"forward_difference": 0, "labels_not_one_vs_rest": 0, "learning_rate_too_large": 0,
               "logreg_gradient_descent": 0, "logreg_mean_gradient": 0, "one_vs_rest_inverted_labels": 0,
-              "policy_gradient_descent": 2, "policy_mirror_image": 0, "predict_prob_without_bias": 1,
+              "policy_gradient_descent": 2, "policy_mirror_image": 0, "predict_prob_without_bias": 0.5,
               "sigmoid_wrong_sign": 0, "single_rollout": 1}
 
 pytestmark = pytest.mark.timeout(900)
@@ -165,7 +169,7 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
         archive.writestr("hw1/../../escaped.py", "print('outside')\n")
     made.expect("traversal", "rejected: a path that leaves the submission in the zip: 'hw1/../../escaped.py'", zero())
     write_huge_zip(folder / "huge.zip")
-    made.expect("huge", f"rejected: hwlib/finite_diff.py: 200 MB, more than the {classroom._size(blocks.MAX_FILE_BYTES)}"
+    made.expect("huge", f"rejected: hwlib/finite_diff.py: 200 MB, more than the {submissions.size_text(blocks.MAX_FILE_BYTES)}"
                         " read per file", zero())
     (folder / "damaged.zip").write_bytes(b"PK\x03\x04" + bytes(100))
     made.expect("damaged", "unreadable: not a zip file (no end-of-archive record)", zero())
@@ -203,7 +207,7 @@ def test_the_class_has_thirty_submissions_of_every_kind(a_class):
 def test_every_gradebook_cell_is_the_expected_one(a_class, first_run):
     report, out, _, _ = first_run
     header, rows, order = read_gradebook(out / "grades.csv")
-    assert header == classroom.gradebook_header()
+    assert header == gradebook_header()
     assert header[:2] == ["student", "status"] and header[-1] == "notes"
     assert [auto_column(todo) for todo in AUTO_TODOS] == header[2:2 + len(AUTO_TODOS)]
     assert header[2 + len(AUTO_TODOS)] == f"auto total (/{AUTO_POINTS:g})" == "auto total (/39)"
@@ -329,10 +333,10 @@ def test_a_killed_run_resumes_without_grading_again_what_was_saved(a_class, firs
 
 def read(path, layout):
     try:
-        with classroom.open_submission(path, classroom.kit_file_names(layout)) as opened:
+        with submissions.open_submission(path, submissions.kit_file_names(layout)) as opened:
             files = sorted(p.relative_to(opened.kit).as_posix() for p in opened.kit.rglob("*") if p.is_file())
             return "ok", files, opened.digest, opened.notes
-    except classroom.Unusable as unusable:
+    except submissions.Unusable as unusable:
         return unusable.text, [], None, []
 
 
@@ -368,10 +372,10 @@ def test_two_kits_in_one_submission_are_not_guessed_between(a_kit, layout, tmp_p
 def test_bare_library_files_are_read_as_hwlib(a_kit, layout, tmp_path):
     flat = tmp_path / "flat"
     flat.mkdir()
-    for name in classroom.kit_file_names(layout):
+    for name in submissions.kit_file_names(layout):
         shutil.copy(a_kit / "hwlib" / name, flat / name)
     status, files, _, notes = read(flat, layout)
-    assert status == "ok" and files == sorted(f"hwlib/{name}" for name in classroom.kit_file_names(layout))
+    assert status == "ok" and files == sorted(f"hwlib/{name}" for name in submissions.kit_file_names(layout))
     assert "read as hwlib/" in notes[0]
 
 
@@ -440,10 +444,10 @@ def test_a_file_with_more_bytes_than_declared_is_refused(a_kit, layout, tmp_path
 
 def test_too_many_entries_too_many_bytes_empty_and_damaged(a_kit, layout, tmp_path, monkeypatch):
     archive = zip_folder(a_kit, tmp_path / "s.zip")
-    monkeypatch.setattr(classroom, "MAX_ENTRIES", 5)
+    monkeypatch.setattr(submissions, "MAX_ENTRIES", 5)
     assert read(archive, layout)[0].startswith("rejected: a zip of ")
     monkeypatch.undo()
-    monkeypatch.setattr(classroom, "MAX_SUBMISSION_BYTES", 100_000)
+    monkeypatch.setattr(submissions, "MAX_SUBMISSION_BYTES", 100_000)
     assert read(archive, layout)[0].startswith("rejected: ") and "read per submission" in read(archive, layout)[0]
     monkeypatch.undo()
     with zipfile.ZipFile(tmp_path / "empty.zip", "w"):
@@ -483,3 +487,57 @@ def test_command_line_needs_a_gradebook_for_a_folder_of_submissions(tmp_path):
     result = subprocess.run([sys.executable, "-m", "hwtools.grade", str(KIT), "--gradebook", str(tmp_path / "g.csv")],
                             cwd=KIT, capture_output=True, text=True, timeout=120)
     assert result.returncode == 2 and "is a kit" in result.stderr
+
+
+def lying_zip(path, entries=600_000):
+    """A zip whose central directory holds ``entries`` records while its end record declares one
+    (the issue's 54 MB zip of 600,000 entries, written record by record in a second)."""
+    records = []
+    for number in range(entries):
+        name = f"f{number}".encode()
+        records.append(struct.pack("<4s6H3I5H2I", b"PK\x01\x02", 20, 20, 0, 0, 0, 0, 0, 0, 0, len(name), 0, 0, 0, 0,
+                                   0, 0) + name)
+    directory = b"".join(records)
+    end = struct.pack("<4s4H2IH", b"PK\x05\x06", 0, 0, 1, 1, len(directory), 0, 0)
+    path.write_bytes(directory + end)
+    return path
+
+
+def test_a_zip_whose_end_record_lies_about_its_entries_is_rejected_with_bounded_memory(layout, tmp_path,
+                                                                                      monkeypatch):
+    archive = lying_zip(tmp_path / "many.zip")
+    assert archive.stat().st_size > 5_000_000
+    monkeypatch.setattr(zipfile.ZipFile, "__init__", lambda *args, **kwargs: 1 / 0)  # never parsed by zipfile
+    tracemalloc.start()
+    try:
+        status = read(archive, layout)[0]
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert status == (f"rejected: a zip of more than {submissions.MAX_ENTRIES} entries (counted in its central "
+                      "directory), more than are read")
+    assert peak < 16 * 2**20, f"{peak / 2**20:.0f} MiB to count the entries"
+
+
+FORGED = "\r\x1b[2Kbob: graded, 39 of 39\x1b[0m\u202e"  # rewrites the instructor's terminal line, reverses text
+
+
+def test_control_characters_never_reach_the_gradebook_the_feedback_or_the_terminal(layout, grader, tmp_path):
+    folder = tmp_path / "submissions"
+    blocks.write_submission(layout, folder / f"mallory{FORGED}", {"2.2.1": (
+        f"import warnings\nwarnings.warn({FORGED!r})\nvalues = 0.5 * (1.0 + np.tanh(0.5 * z))")}, others="reference")
+    with zipfile.ZipFile(folder / f"eve{FORGED}.zip", "w") as archive:
+        archive.writestr(f"hw1/../{FORGED}.py", "x = 1\n")
+        archive.writestr("hw1/hwlib/finite_diff.py", "x = 1\n")
+    (folder / f"trudy{FORGED}").mkdir()
+    (folder / f"trudy{FORGED}" / f"{FORGED}.txt").write_text("no kit here")
+    progress = io.StringIO()
+    report = classroom.grade_class(folder, tmp_path / "grades.csv", tmp_path / "feedback", grader=grader, jobs=1,
+                                   progress=progress)
+    assert len(report.students) == 3 and report.graded_now == 1
+    shown = {"gradebook": (tmp_path / "grades.csv").read_text(encoding="utf-8"), "progress": progress.getvalue()}
+    shown |= {path.name: path.read_text(encoding="utf-8") for path in (tmp_path / "feedback").glob("*.md")}
+    for where, text in shown.items():
+        assert not [char for char in text if char != "\n" and unicodedata.category(char) in ("Cc", "Cf")], where
+        assert "x1b" in text and "2Kbob: graded, 39 of 39" in text, where  # shown, escaped
+    assert "rejected: a path that leaves the submission" in shown["gradebook"]

@@ -3,10 +3,16 @@ is unpacked into a temporary folder laid out as ``/autograder`` (a fresh one per
 Gradescope gives a fresh container), ``run_autograder`` runs with this venv's Python (setup.sh is
 not run), and each ``results.json`` is checked against a schema written from
 ``../shared/grading/gradescope-autograder.md`` and against the expected scores.
+
+Two containers (``containers.py``): this machine, where bubblewrap works, and Docker's, where a
+``bwrap`` that fails as Docker's seccomp profile makes it fail comes first on PATH, so that the
+grader falls back to a user of its own per run (``tests/cheats/gradescope/``: the attacks that
+got through the old fallback fail there: the results.json overwrite, /tmp kit borrowing, root).
 """
 
 from __future__ import annotations
 
+import hashlib
 import importlib.metadata
 import json
 import os
@@ -14,6 +20,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -26,7 +33,11 @@ from hwtools.grade.gradescope import BUNDLE_MARKER
 
 KIT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(KIT / "tests"))
+import containers  # noqa: E402
 import test_grading as proof  # noqa: E402 - the grader's proof builds the wrong solutions and cheats
+from process_watch import live_processes  # noqa: E402
+
+ATTACKS = KIT / "tests" / "cheats" / "gradescope"
 
 TIME_LIMIT = 20
 pytestmark = pytest.mark.timeout(900)
@@ -102,9 +113,32 @@ def layout():
     return blocks.load_layout(KIT)
 
 
-def autograde(bundle, tmp_path, make_submission):
+@pytest.fixture(scope="module")
+def docker(tmp_path_factory):
+    """The environment of a Docker container where bubblewrap fails: a failing ``bwrap`` first on
+    PATH and a Python the fallback's users can run (setup.sh's venv)."""
+    folder, python = containers.user_sandbox_python()
+    fake = containers.fake_bwrap_folder(tmp_path_factory.mktemp("docker-bin"))
+    yield {"PATH": f"{fake}:{os.environ['PATH']}", "AUTOGRADER_PYTHON": python}
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.fixture(params=["bwrap", "docker"])
+def container(request):
+    """Each container: where bubblewrap works ({}), and Docker's, where it fails."""
+    if request.param == "bwrap":
+        from hwtools.grade.sandbox import probe_isolation
+
+        works, how = probe_isolation(sys.executable)
+        if not works:
+            pytest.skip(f"bubblewrap does not work here: {how}")
+        return {}
+    return request.getfixturevalue("docker")
+
+
+def autograde(bundle, tmp_path, make_submission, container=None):
     """Lay out ``tmp_path`` as /autograder (the bundle in source/, run_autograder beside it), put a
-    submission in submission/, run run_autograder; (results.json, stdout)."""
+    submission in submission/, run run_autograder (in ``container``: environment variables); (results.json, stdout)."""
     root = tmp_path / "autograder"
     (root / "source").mkdir(parents=True)
     (root / "results").mkdir()
@@ -116,12 +150,17 @@ def autograde(bundle, tmp_path, make_submission):
     (root / "submission").mkdir()
     make_submission(root / "submission")
     env = os.environ | {"AUTOGRADER_ROOT": str(root), "AUTOGRADER_PYTHON": sys.executable,
-                        "AUTOGRADER_TIME_LIMIT": str(TIME_LIMIT)}
+                        "AUTOGRADER_TIME_LIMIT": str(TIME_LIMIT)} | (container or {})
     result = subprocess.run([str(root / "run_autograder")], cwd=root, env=env, capture_output=True, text=True,
                             timeout=600)
     assert result.returncode == 0, result.stderr + result.stdout
     data = json.loads((root / "results" / "results.json").read_text())
     check_results(data)
+    if container:  # Docker's: the fallback graded, and the log and results.json say so
+        assert data["extra_data"]["sandbox"] == "user" and "sandbox: user: " in result.stdout, result.stdout
+        assert "before results.json was written" in result.stdout
+    elif container is not None:
+        assert data["extra_data"]["sandbox"] == "bwrap" and "sandbox: bwrap: " in result.stdout
     # graded by the bundle's own grader, and the reference deleted from disk once loaded
     assert f"grader: {(root / 'source' / 'hwtools' / 'grade').resolve()}" in result.stdout
     assert not (root / "source" / "hwlib").exists() and not (root / "source" / "instructor").exists()
@@ -188,12 +227,62 @@ def test_the_bundled_requirements_cover_what_the_graded_code_imports():
     assert normal <= {name.replace("_", "-") for name in allowed}, normal - allowed
 
 
-def test_a_correct_submission_earns_every_point(bundle, layout, tmp_path):
-    data, stdout = autograde(bundle, tmp_path, lambda folder: blocks.write_submission(layout, folder, others="reference"))
+def test_a_correct_submission_earns_every_point(bundle, layout, tmp_path, container):
+    data, stdout = autograde(bundle, tmp_path, lambda folder: blocks.write_submission(layout, folder, others="reference"),
+                             container)
     assert data["score"] == AUTO_POINTS == 39
     assert all(test["status"] == "passed" for test in data["tests"])
     assert data["extra_data"]["status"] in ("graded", "not isolated")
     assert "Grading your submission" in stdout  # the full report, for the instructor's log
+    assert "grader memory limit: " in stdout
+
+
+def attack(name, layout, answer_key):
+    """A submission maker for the attack ``tests/cheats/gradescope/NAME.txt``, and its cheat."""
+    cheat = proof.parse_cheat(ATTACKS / f"{name}.txt")
+    return (lambda folder: proof.build_cheat(layout, cheat, folder, answer_key)), cheat
+
+
+@pytest.fixture(scope="module")
+def answer_key(tmp_path_factory):
+    key_path = tmp_path_factory.mktemp("key") / "answer_key.json"
+    write_answer_key(KIT, key_path)
+    return read_answer_key(key_path)
+
+
+def test_a_child_that_rewrites_results_json_after_the_grader_does_not_change_the_score(bundle, layout, tmp_path,
+                                                                                      container, answer_key):
+    submission, cheat = attack("results_overwrite", layout, answer_key)
+    marker = Path("/tmp/hwgrade-overwrite-" + hashlib.sha256(str(tmp_path / "autograder").encode()).hexdigest()[:12])
+    try:
+        data, _ = autograde(bundle, tmp_path, submission, container)
+        assert data["score"] == cheat["points"] == 0
+        if container:  # without namespaces the attack ran: it found the root and wrote its marker in /tmp
+            assert marker.exists(), "the attack did not run"
+        time.sleep(1.5)  # the forged writes came every 0.05 s while the child lived
+        assert json.loads((tmp_path / "autograder" / "results" / "results.json").read_text()) == data
+        assert not live_processes(lambda cmdline: cmdline.startswith(b"sh\0-c\0end=")), "the child outlived grading"
+    finally:
+        marker.unlink(missing_ok=True)
+    if container:  # nothing under the root that runs later is writable by the sandbox's users
+        root = tmp_path / "autograder"
+        assert (root / "source").stat().st_mode & 0o777 == 0o700
+        assert (root / "results").stat().st_uid == 0 and not (root / "results").stat().st_mode & 0o022
+        for path in [root / "run_autograder", *(root / "source").rglob("*")]:
+            assert path.is_symlink() or not path.lstat().st_mode & 0o022, path
+
+
+def test_a_submission_cannot_borrow_the_reference_from_another_run_s_kit(bundle, layout, tmp_path, container,
+                                                                        answer_key):
+    submission, cheat = attack("tmp_borrowing", layout, answer_key)
+    data, _ = autograde(bundle, tmp_path, submission, container)
+    assert points_tests(data)["1.2.1"]["score"] == 0 and data["score"] == cheat["points"] == 0
+
+
+def test_student_code_never_runs_as_root(bundle, layout, tmp_path, container, answer_key):
+    submission, cheat = attack("runs_as_root", layout, answer_key)
+    data, _ = autograde(bundle, tmp_path, submission, container)
+    assert points_tests(data)["2.2.1"]["score"] == 0 and data["score"] == cheat["points"] == 37
 
 
 def test_a_wrong_solution_loses_its_own_todo_and_is_told_what_to_fix(bundle, layout, tmp_path):
@@ -258,5 +347,6 @@ def test_students_read_their_status_without_the_sandbox_s_state():
     check_results(data)
     assert "Status: **timed out: 2.2.1**" in data["output"] and "isolated" not in data["output"]
     assert data["extra_data"] == {"status": "timed out: 2.2.1; not isolated", "isolated": False,
-                                  "isolation": "bwrap is missing"}
+                                  "isolation": "bwrap is missing", "sandbox": ""}
+    assert results_json(result, "graded", sandbox="user")["extra_data"]["sandbox"] == "user"
     assert results_json(result, "not isolated")["output"].startswith("Status: **graded**")

@@ -121,21 +121,21 @@ def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, 
 
 # Mistakes the issue names, with the points they keep: the credit follows what is right.
 MISTAKES = {
-    "score <= 0 gives action 1 (the tie)": ("1.1.1", "action = int(np.dot(self.params, obs) <= 0)", 1.5),
+    "score <= 0 gives action 1 (the tie)": ("1.1.1", "action = int(np.dot(self.params, obs) <= 0)", 0),
     "central difference over h, not 2h": ("1.2.1", "for i in range(len(x)):\n    step = np.zeros_like(x)\n"
                                           "    step[i] = h[i]\n    gradient[i] = (f(x + step) - f(x - step)) / h[i]", 0),
     "perturbs a vector filled with x_i, not x": ("1.2.1", "for i in range(len(x)):\n    point = np.full_like(x, x[i])\n"
                                                  "    step = np.zeros_like(x)\n    step[i] = h[i]\n"
                                                  "    gradient[i] = (f(point + step) - f(point - step)) / (2 * h[i])", 0),
     "one step h[0] for every coordinate": ("1.2.1", "for i in range(len(x)):\n    step = np.zeros_like(x)\n"
-                                           "    step[i] = h[0]\n    gradient[i] = (f(x + step) - f(x - step)) / (2 * h[0])", 5),
+                                           "    step[i] = h[0]\n    gradient[i] = (f(x + step) - f(x - step)) / (2 * h[0])", 3),
     "one rollout only": ("1.3.1", "mean_reward = run_policy(policy, seed=seed)", 1),
     "unseeded episodes": ("1.3.1", "mean_reward = np.mean([run_policy(policy) for k in range(num_rollouts)])", 4),
     "records the reward before the update": ("1.3.2", "g = lambda p: eval_params(p, num_rollouts_per_eval, seed=eval_seed)\n"
                                              "rewards.append(g(params))\n"
                                              "params = params + learning_rate * scalar_finite_diff(g, params, fd_step)", 3),
     "a learning rate that does not converge in 7": ("1.3.3", "LEARNING_RATE = 1e-4", 0),
-    "sigmoid that gives NaN far out": ("2.2.1", "values = np.exp(z) / (1 + np.exp(z))", 1.5),
+    "sigmoid that gives NaN far out": ("2.2.1", "values = np.exp(z) / (1 + np.exp(z))", 0.5),
     "predict_prob without the sigmoid": ("2.2.2", "X_aug = np.hstack([X, np.ones((len(X), 1))])\n"
                                          "probabilities = X_aug @ self.weights", 0),
     "mean gradient instead of the sum": ("2.2.3", "self.weights = self.weights + learning_rate * "

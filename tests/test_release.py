@@ -5,6 +5,7 @@ Instructor-only: the student edition leaves this file out.
 
 from __future__ import annotations
 
+import ast
 import json
 import os
 import pkgutil
@@ -436,3 +437,157 @@ def test_command_line_refuses_to_overwrite_and_replaces_an_earlier_edition_with_
     broken = make_kit(tmp_path / "broken", module="### BEGIN SOLUTION 1.1.1\nx = 1\n")
     result = subprocess.run([*command, str(tmp_path / "out3"), "--source", str(broken)], cwd=tmp_path, env=env, capture_output=True, text=True)
     assert result.returncode == 1 and "hwlib/mod.py:1: BEGIN SOLUTION 1.1.1 has no END SOLUTION" in result.stderr
+
+
+# --------------------------------------------------------------------------------------------
+# "Not done yet": an untouched function stub raises TodoNotDone, naming its TODO
+# --------------------------------------------------------------------------------------------
+
+TODO_MODULE = '''"""The kit's "not done yet" (a stand-in for hwlib/_todo.py)."""
+
+
+class TodoNotDone(NotImplementedError):
+    def __init__(self, todo):
+        super().__init__(f"TODO {todo} is not done yet")
+        self.todo = todo
+'''
+
+
+def _with_not_done(module):
+    return module.replace("import numpy as np\n", "import numpy as np\n\nfrom hwlib._todo import TodoNotDone\n", 1)
+
+
+def test_function_stubs_raise_todo_not_done_where_the_kit_defines_it(tmp_path):
+    source = make_kit(tmp_path / "src", module=_with_not_done(MODULE))
+    (source / "hwlib" / "_todo.py").write_text(TODO_MODULE)
+    build_student_edition(source, tmp_path / "out", answer_key=False)
+    module = (tmp_path / "out" / "hwlib" / "mod.py").read_text()
+    assert ("    x = np.asarray(x)\n    ### BEGIN TODO 1.1.1\n    # TODO 1.1.1: multiply by two\n"
+            '    raise TodoNotDone("1.1.1")\n    ### END TODO 1.1.1\n') in module
+    assert re.search(r'^            # TODO 1\.2\.1: .+\n            raise TodoNotDone\("1\.2\.1"\)\n            ### END TODO 1\.2\.1$',
+                     module, re.M)
+    assert "RATE = None  # TODO 1.3.3: " in module and "pass" not in module  # module level: still None
+    code = ("import hwlib.mod as m\nfrom hwlib._todo import TodoNotDone\nfor call in (lambda: m.double(1), lambda: m.Thing().value()):\n"
+            "    try:\n        call()\n    except TodoNotDone as error:\n        print(error.todo)\nprint(m.RATE)")
+    result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path / "out", capture_output=True, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(tmp_path / "out")))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["1.1.1", "1.2.1", "None"]
+
+
+def test_a_module_with_a_function_stub_must_import_todo_not_done(tmp_path):
+    source = make_kit(tmp_path / "src")  # MODULE does not import it
+    (source / "hwlib" / "_todo.py").write_text(TODO_MODULE)
+    with pytest.raises(ReleaseError, match=r"hwlib/mod\.py:\d+: the stub of TODO 1\.1\.1 raises TodoNotDone; import it"):
+        build_student_edition(source, tmp_path / "out", answer_key=False)
+
+
+def test_stub_lines_come_before_the_raise_and_a_stub_that_raises_keeps_its_own():
+    given = ("from hwlib._todo import TodoNotDone\n\n\ndef f(x):\n    ### BEGIN SOLUTION 1.1.1\n    ### HINT: h\n"
+             "    ### STUB: y = x\n    y = x\n    return 2 * y\n    ### END SOLUTION 1.1.1\n\n\n"
+             "def g(x):\n    ### BEGIN SOLUTION 1.2.1\n    ### HINT: h\n    ### STUB: raise ValueError('mine')\n"
+             "    return 3\n    ### END SOLUTION 1.2.1\n")
+    student = transform_python(given, "m.py")
+    assert '    # TODO 1.1.1: h\n    y = x\n    raise TodoNotDone("1.1.1")\n    ### END TODO 1.1.1' in student
+    assert "    # TODO 1.2.1: h\n    raise ValueError('mine')\n    ### END TODO 1.2.1" in student
+    assert student.count("raise TodoNotDone") == 1
+
+
+def test_every_function_stub_of_this_kit_raises_todo_not_done(tmp_path):
+    """This kit's student edition, with ``hwlib/_todo.py`` and its imports (added here where the kit
+    does not have them yet): every block in a function is its hint and ``raise TodoNotDone("id")``,
+    every module imports, and an untouched ``scalar_finite_diff`` raises TodoNotDone("1.2.1")."""
+    source = tmp_path / "src"
+    for name in kit_files(REPO):
+        (source / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(REPO / name, source / name)
+    if not (source / "hwlib" / "_todo.py").exists():
+        (source / "hwlib" / "_todo.py").write_text(TODO_MODULE)
+    function_todos = {}
+    for path in sorted((source / "hwlib").rglob("*.py")):
+        found = [block for block, _, _ in file_blocks(path)]
+        function_todos.update({block.todo: path for block in found if block.indent})
+        text = path.read_text()
+        if any(block.indent for block in found) and not re.search(r"^from \S+ import .*\bTodoNotDone\b", text, re.M):
+            last_import = max(node.end_lineno for node in ast.parse(text).body if isinstance(node, (ast.Import, ast.ImportFrom)))
+            lines = text.split("\n")
+            path.write_text("\n".join(lines[:last_import] + ["from hwlib._todo import TodoNotDone"] + lines[last_import:]))
+    assert {"1.1.1", "1.2.1", "1.3.1", "1.3.2", "2.1.1", "2.2.1", "2.2.2", "2.2.3", "2.3.1"} <= set(function_todos)
+    out = tmp_path / "student"
+    build_student_edition(source, out, answer_key=False)
+    for todo, path in function_todos.items():
+        student = (out / path.relative_to(source)).read_text()
+        assert re.search(rf'^([ \t]+)### BEGIN TODO {re.escape(todo)}\n\1# TODO {re.escape(todo)}: .+\n'
+                         rf'\1raise TodoNotDone\("{re.escape(todo)}"\)\n\1### END TODO {re.escape(todo)}$', student, re.M), todo
+    assert re.search(r"^LEARNING_RATE = None  # TODO 1\.3\.3: ", (out / "hwlib" / "settings.py").read_text(), re.M)
+    code = ("import hwlib\nfrom hwlib._todo import TodoNotDone\nfrom hwlib.finite_diff import scalar_finite_diff\n"
+            "try:\n    scalar_finite_diff(lambda x: float(x.sum()), [1.0, 2.0], 0.1)\nexcept TodoNotDone as error:\n"
+            "    print('raised', *error.args)")
+    result = subprocess.run([sys.executable, "-c", code], cwd=out, capture_output=True, text=True,
+                            env=dict(os.environ, PYTHONPATH=str(out), MPLBACKEND="Agg"))
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("raised") and "1.2.1" in result.stdout, result.stdout
+
+
+# --------------------------------------------------------------------------------------------
+# Dependencies point one way
+# --------------------------------------------------------------------------------------------
+
+ACYCLIC = ("instructor", "hwtools")  # hwlib joins when its own two cycles are gone (issue 16.2)
+
+
+def _imports(package_root):
+    """{module: the kit's modules it imports (at any depth of its code)} for the packages in ACYCLIC."""
+    modules = {}
+    for path in sorted(package_root.rglob("*.py")):
+        parts = path.relative_to(package_root).with_suffix("").parts
+        if parts[0] in ACYCLIC and "__pycache__" not in parts:
+            modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    graph = {}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                targets = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join([*package.split(".")[:len(package.split(".")) - node.level + 1], *([base] if base else [])])
+                targets = [base] + [f"{base}.{alias.name}" for alias in node.names]
+            else:
+                continue
+            for target in targets:
+                while target and target not in modules:
+                    target = target.rpartition(".")[0]
+                if target and target != name and not name.startswith(target + "."):  # a package's own parents
+                    found.add(target)
+        graph[name] = found
+    return graph
+
+
+def _cycles(graph):
+    """The import cycles of ``graph``, each as the list of modules on it."""
+    cycles, state = [], {}
+
+    def visit(name, path):
+        state[name] = "open"
+        for target in sorted(graph[name]):
+            if state.get(target) == "open":
+                cycles.append(path[path.index(target):] + [target])
+            elif target not in state:
+                visit(target, [*path, target])
+        state[name] = "done"
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+    return cycles
+
+
+def test_the_release_tool_and_the_grader_have_no_import_cycles():
+    graph = _imports(REPO)
+    assert "instructor.kit" in graph["instructor.gradescope"] and "instructor.release" not in graph["instructor.gradescope"]
+    assert graph["hwtools.markers"] == set()  # the shared reader stands on nothing of the kit
+    assert _cycles(graph) == []
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == [["a", "b", "c", "a"]]  # the search does find one

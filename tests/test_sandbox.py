@@ -2,25 +2,33 @@
 
 Each test runs the worker on a tiny kit whose ``sigmoid`` does what the test needs (try the
 network, look for the instructor's files, allocate memory...) and returns numbers saying what
-happened. Tests of the isolation itself skip where bubblewrap cannot run (the grader then says
-NOT ISOLATED); the limits hold either way.
+happened. Three sandboxes: ``isolated`` (bubblewrap), ``user`` (the fallback without namespaces:
+an unprivileged user per run; the pool's users are created here as ``setup.sh`` creates them,
+and a Python those users can run is made from the system's), and ``plain`` (none). Tests of an
+isolation skip where it cannot run (the grader then says NOT ISOLATED); the limits hold in all.
 """
 
 from __future__ import annotations
 
 import io
+import os
+import shutil
+import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hwtools.grade import sandbox, worker
+from hwtools.grade import sandbox, user_sandbox, worker
 from hwtools.grade.sandbox import Sandbox
-from process_watch import live_processes
+import containers
+from process_watch import SUBREAPER, live_processes
 
 KIT = Path(__file__).resolve().parents[1]
+CANARY = "HWGRADE_CANARY"
 
 pytestmark = pytest.mark.timeout(300)
 
@@ -61,7 +69,27 @@ def plain():
     return Sandbox(python=sandbox.sys.executable, isolation="none", time_limit=30)
 
 
-def test_no_network(isolated, tmp_path):
+@pytest.fixture(scope="module")
+def user_python():
+    """A Python the pool's users can run (this one may live under /root), with this one's packages."""
+    folder, python = containers.user_sandbox_python()
+    yield python
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.fixture()
+def fake_bwrap(tmp_path):
+    return containers.fake_bwrap_folder(tmp_path / "docker-bin")
+
+
+@pytest.fixture(scope="module")
+def user(user_python):
+    return Sandbox(python=user_python, isolation="user", time_limit=30)
+
+
+@pytest.mark.parametrize("mode", ["isolated", "user"])
+def test_no_network(mode, request, tmp_path):
+    box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
         import socket
         try:
@@ -70,7 +98,7 @@ def test_no_network(isolated, tmp_path):
         except OSError:
             values = np.array([0.0])
     """))
-    assert values(run(kit, isolated)).tolist() == [0.0]
+    assert values(run(kit, box)).tolist() == [0.0]
 
 
 def test_sees_only_its_kit_python_and_a_fresh_tmp(isolated, tmp_path):
@@ -116,7 +144,76 @@ def test_unprivileged_in_its_own_process_namespace_with_a_clean_environment(isol
     assert processes < 10  # the host's processes are not visible
 
 
-@pytest.mark.parametrize("mode", ["isolated", "plain"])
+def environment_readout(paths):
+    """Kit code that reads every process's environment and command line it can, as the environment
+    read-out cheat does, and says whether the canary or one of ``paths`` appeared."""
+    return textwrap.dedent(f"""
+        seen = os.environ.copy().__repr__()
+        for entry in os.listdir("/proc"):
+            for name in ("environ", "cmdline"):
+                try:
+                    seen += open(f"/proc/{{entry}}/{{name}}", "rb").read().decode("utf-8", "replace")
+                except OSError:
+                    pass
+        values = np.array([{CANARY!r} in seen] + [path in seen for path in {[str(p) for p in paths]!r}]
+                          + [len(seen) > 0], dtype=float)
+    """)
+
+
+def test_bubblewrap_shows_the_sandbox_neither_the_grader_s_environment_nor_its_paths(isolated, tmp_path,
+                                                                                      monkeypatch):
+    monkeypatch.setenv(CANARY, "a token of the instructor's shell")
+    # (the Python and its virtual environment are bound at their own paths: those show, nothing else)
+    kit = make_kit(tmp_path, environment_readout([tmp_path, sandbox.WORKER, KIT / "hwlib", KIT / "instructor"]))
+    canary, *paths, read = values(run(kit, isolated))
+    assert read == 1 and canary == 0, "/proc/1/environ (bubblewrap's init) or another shows the grader's environment"
+    assert paths == [0, 0, 0, 0], "a host path of the kit or the worker shows in the sandbox's /proc"
+    box = Sandbox(python=sandbox.sys.executable, isolation="auto", time_limit=30)
+    command, options = box.command(kit, 10)
+    assert str(kit) not in " ".join(command) and str(kit) in " ".join(options)  # the paths go through a pipe
+
+
+def test_the_user_sandbox_reads_no_environment_of_the_grader(user, tmp_path, monkeypatch):
+    monkeypatch.setenv(CANARY, "a token of the instructor's shell")
+    kit = make_kit(tmp_path, environment_readout([]))
+    canary, read = values(run(kit, user))
+    assert read == 1 and canary == 0
+
+
+def test_the_user_sandbox_runs_as_a_user_of_its_own_on_a_kit_only_it_can_read(user, tmp_path):
+    secret = make_kit(tmp_path / "a", "values = np.array([7.0])")
+    (secret / "hwlib" / "reference.py").write_text("ANSWER = 42\n")
+    other = user.start(secret)  # a run that holds its kit while the next one looks for it
+    try:
+        folder = other._run_folder
+        kit = make_kit(tmp_path / "b", textwrap.dedent(f"""
+            checks = [os.getuid() == 0, os.geteuid() == 0, {folder.uid} == os.getuid()]
+            for path in ({str(folder.kit / "hwlib" / "reference.py")!r}, {str(folder.kit)!r}, {str(secret)!r}):
+                try:
+                    open(path).read() if path.endswith(".py") else os.listdir(path)
+                    checks.append(True)
+                except OSError:
+                    checks.append(False)
+            for path in ("/kit", os.path.dirname(os.path.dirname(__file__))):  # its own kit is read-only
+                try:
+                    open(os.path.join(path, "hwlib", "new.py"), "w").close()
+                    checks.append(True)
+                except OSError:
+                    checks.append(False)
+            status = open("/proc/self/status").read()
+            checks.append(int(status.split("CapEff:")[1].split()[0], 16) != 0)
+            checks.append(status.split("NoNewPrivs:")[1].split()[0] != "1")
+            with open(os.path.join(os.environ["HOME"], "scratch"), "w") as handle:  # its home is writable
+                handle.write("x")
+            values = np.array(checks, dtype=float)
+        """))
+        assert values(run(kit, user)).tolist() == [0] * 10
+    finally:
+        other.finish(graceful=False)
+    assert not folder.base.exists(), "the run's folder is deleted after it"
+
+
+@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
 def test_memory_limit(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
@@ -129,12 +226,54 @@ def test_memory_limit(mode, request, tmp_path):
     assert values(run(kit, box)).tolist() == [0.0]
 
 
-@pytest.mark.parametrize("mode", ["isolated", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
 def test_endless_loop_ends_at_the_time_limit(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, "while True:\n    pass\nvalues = None")
     outcome = run(kit, box, time_limit=2)
     assert outcome.status in ("timeout", "ended") and not outcome.answers
+    assert outcome.status == "timeout" and "CPU-time limit" in outcome.detail, outcome
+
+
+@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+def test_the_time_limit_counts_cpu_so_a_slow_machine_is_no_time_out(mode, request, tmp_path):
+    """Code that takes longer on the wall clock than its CPU limit (as on a loaded machine) is not
+    timed out; code that waits for ever is, by the wall-clock backstop."""
+    box = request.getfixturevalue(mode)
+    slow = make_kit(tmp_path / "slow", "time.sleep(2.5)\nvalues = np.array([1.0])")
+    assert values(run(slow, box, time_limit=1)).tolist() == [1.0]
+    stuck = make_kit(tmp_path / "stuck", "time.sleep(10_000)\nvalues = None")
+    outcome = run(stuck, box, time_limit=0.1)
+    assert outcome.status == "timeout" and "wall-clock" in outcome.detail, outcome
+
+
+@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+def test_a_child_that_holds_the_error_stream_does_not_hold_the_grader(mode, request, tmp_path):
+    """A child that leaves the session and clears its environment (so that without a sandbox
+    nothing finds it), keeping the worker's standard output and error open for CHILD_SECONDS."""
+    box = request.getfixturevalue(mode)
+    kit = make_kit(tmp_path, textwrap.dedent(f"""
+        if os.fork() == 0:
+            os.setsid()
+            sys.stderr.write("the child holds stderr\\n")
+            sys.stderr.flush()
+            os.execve("/bin/sleep", ["sleep", "{CHILD_SECONDS}.25"], {{}})
+        values = np.array([1.0])
+    """))
+    holder = lambda: live_processes(lambda cmdline: cmdline == f"sleep\0{CHILD_SECONDS}.25\0".encode())  # noqa: E731
+    try:
+        outcome = run(kit, box, time_limit=5)
+        assert values(outcome).tolist() == [1.0]
+        assert outcome.seconds < CHILD_SECONDS / 2, "the grader waited for the child"
+        assert "the child holds stderr" in outcome.stderr_tail
+        if mode != "plain":  # without a sandbox such a child outlives the run: the README says so
+            assert not holder(), "the child outlived the run"
+    finally:
+        for pid in holder():
+            os.kill(pid, 9)
+
+
+CHILD_SECONDS = 300
 
 
 def worker_processes(kit, settle=3.0):
@@ -144,7 +283,7 @@ def worker_processes(kit, settle=3.0):
                           (b"worker.py" in cmdline and str(kit).encode() in cmdline), settle)
 
 
-@pytest.mark.parametrize("mode", ["isolated", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
 def test_a_fork_does_not_outlive_the_run(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
@@ -157,12 +296,32 @@ def test_a_fork_does_not_outlive_the_run(mode, request, tmp_path):
         time.sleep(0.3)
         values = np.array([1.0])
     """))
+    assert SUBREAPER, "the scan sees orphans only when this process reaps them"
     assert not worker_processes(kit, settle=0)
     assert values(run(kit, box)).tolist() == [1.0]
     assert not worker_processes(kit), "a process started by the student's code outlived the run"
 
 
-@pytest.mark.parametrize("mode", ["isolated", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "user"])
+def test_a_setsid_child_with_an_empty_environment_does_not_outlive_the_run(mode, request, tmp_path):
+    """The Gradescope overwrite's first step: leave the session and exec with no environment
+    (no token to find it by); the sandbox still ends it."""
+    box = request.getfixturevalue(mode)
+    kit = make_kit(tmp_path, textwrap.dedent("""
+        if os.fork() == 0:
+            os.setsid()
+            if os.fork() == 0:
+                os.execve("/bin/sleep", ["sleep", "2999.5"], {})
+            os._exit(0)
+        time.sleep(0.3)
+        values = np.array([1.0])
+    """))
+    sleeping = lambda: live_processes(lambda cmdline: cmdline == b"sleep\x002999.5\x00")  # noqa: E731
+    assert values(run(kit, box)).tolist() == [1.0]
+    assert not sleeping(), "a child with an empty environment outlived the run"
+
+
+@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
 def test_prints_and_exits_do_not_forge_answers(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
@@ -178,7 +337,7 @@ def test_prints_and_exits_do_not_forge_answers(mode, request, tmp_path):
     assert results[1]["status"] == "error" and results[1]["error"].startswith("SystemExit")
 
 
-@pytest.mark.parametrize("mode", ["isolated", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
 def test_garbage_on_the_answer_channel_is_caught(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
@@ -195,14 +354,55 @@ def test_garbage_on_the_answer_channel_is_caught(mode, request, tmp_path):
 
 def test_without_bubblewrap_the_grader_says_so(monkeypatch):
     sandbox.probe_isolation.cache_clear()
+    user_sandbox.probe.cache_clear()
     monkeypatch.setattr(sandbox.shutil, "which", lambda name: None)
     try:
         box = Sandbox(python=sandbox.sys.executable, isolation="auto")
-        assert not box.isolated and "bubblewrap" in box.how
+        assert not box.isolated and "bubblewrap" in box.how and box.kind == "none"
         with pytest.raises(RuntimeError, match="no sandbox"):
             Sandbox(python=sandbox.sys.executable, isolation="bwrap")
+        with pytest.raises(RuntimeError, match="no sandbox"):
+            Sandbox(python=sandbox.sys.executable, isolation="user")
     finally:
         sandbox.probe_isolation.cache_clear()
+        user_sandbox.probe.cache_clear()
+
+
+def test_where_bubblewrap_fails_as_in_docker_the_user_sandbox_takes_over(user_python, fake_bwrap, monkeypatch):
+    monkeypatch.setenv("PATH", f"{fake_bwrap}:{os.environ['PATH']}")
+    sandbox.probe_isolation.cache_clear()
+    try:
+        box = Sandbox(python=user_python, isolation="auto")
+        assert box.kind == "user" and box.isolated, box.how
+        assert "Creating new namespace failed: Operation not permitted" in box.how
+    finally:
+        sandbox.probe_isolation.cache_clear()
+
+
+def test_killing_the_sandbox_users_spares_a_run_that_another_grader_holds(user, tmp_path):
+    held = user.start(make_kit(tmp_path, "values = np.array([3.0])"))  # as another grader's run would
+    try:
+        uid = held._run_folder.uid
+        free = next(entry for entry in user_sandbox.users() if entry.pw_uid != uid)
+        stray = subprocess.Popen(["setpriv", f"--reuid={free.pw_uid}", f"--regid={free.pw_gid}", "--clear-groups", "--",
+                                  "sleep", "2999.75"])
+        while not user_sandbox.processes_of(free.pw_uid) and stray.poll() is None:
+            time.sleep(0.05)
+        assert user_sandbox.kill_all_users()
+        assert stray.wait(timeout=30) == -9, "a free user's process survived"
+        assert held.process.poll() is None and user_sandbox.processes_of(uid), "a held run was killed in its middle"
+    finally:
+        held.finish(graceful=False)
+    assert not user_sandbox.processes_of(uid)
+
+
+def test_the_grader_can_put_itself_under_a_memory_limit():
+    code = ("from hwtools.grade.sandbox import limit_own_memory\n"
+            "limit = limit_own_memory(2 * 1024**3)\n"
+            "try:\n    hoard = bytearray(3 * 1024**3)\n    print(limit, 'allocated')\n"
+            "except MemoryError:\n    print(limit, 'refused')\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=KIT)
+    assert result.stdout.split() == [str(2 * 1024**3), "refused"], result.stderr
 
 
 def test_messages_carry_numbers_only():

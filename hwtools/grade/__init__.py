@@ -25,10 +25,13 @@ The result is a JSON-serialisable dict:
   warnings, code outside the blocks, suspicious calls);
 * ``notes``, ``seconds``.
 
-Modules: ``blocks`` (finding the TODO code, composite kits), ``sandbox`` (bubblewrap or a plain
-subprocess, limits), ``worker`` (runs in the sandbox), ``checks`` (what is checked and how),
-``grader`` (the trusted side), ``feedback`` (the text report). This package imports nothing from
-``hwlib`` and nothing heavier than numpy.
+Modules: ``blocks`` (finding the TODO code, composite kits), ``sandbox`` (launching a worker, its
+limits; ``bwrap_sandbox``: bubblewrap; ``user_sandbox`` and ``confine``: the fallback without
+namespaces, a user of its own per run), ``worker`` (runs in the sandbox), ``checks`` (what is
+checked and how), ``grader`` (the trusted side), ``feedback`` (the text report). A class:
+``submissions`` (reading a submission without trusting it), ``classroom`` (running a class),
+``gradebook``, ``class_feedback`` (Markdown), ``progress``, ``safe_text``; Gradescope:
+``gradescope``. This package imports nothing from ``hwlib`` and nothing heavier than numpy.
 """
 
 from hwtools.grade.grader import Grader, GradingError, write_answer_key

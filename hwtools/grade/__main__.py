@@ -11,7 +11,7 @@ from pathlib import Path
 
 from hwtools.grade.feedback import render
 from hwtools.grade.grader import ANSWER_KEY, KIT_ROOT, Grader, GradingError, has_solutions
-from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, limit_own_memory
 from hwtools.todos import TODO_BY_ID
 
 
@@ -33,11 +33,12 @@ def main(argv=None):
     parser.add_argument("--json", metavar="FILE", help="also write the result as JSON to FILE")
     parser.add_argument("--todo", action="append", metavar="ID", help="grade only this TODO (repeatable)")
     parser.add_argument("--python", help="the Python that runs the homework's code (default: the reference kit's .venv)")
-    parser.add_argument("--isolation", choices=("auto", "bwrap", "none"), default="auto",
-                        help="auto: bubblewrap where it works, else a plain subprocess (the report then says "
-                             "NOT ISOLATED); bwrap: refuse to run without it; none: no sandbox")
+    parser.add_argument("--isolation", choices=("auto", "bwrap", "user", "none"), default="auto",
+                        help="auto: bubblewrap where it works, else an unprivileged user per run where that is set up "
+                             "(as root: python -m hwtools.grade.user_sandbox create), else a plain subprocess (the "
+                             "report then says NOT ISOLATED); bwrap, user: refuse to run without that one; none: no sandbox")
     parser.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
-                        help=f"wall-clock and CPU limit per TODO's run (default {DEFAULT_TIME_LIMIT:g})")
+                        help=f"CPU-time limit per TODO's run; the wall clock stops it at 3x + 10 s (default {DEFAULT_TIME_LIMIT:g})")
     parser.add_argument("--memory-limit", type=int, default=DEFAULT_MEMORY_LIMIT // 2**20, metavar="MIB",
                         help=f"address-space limit per run in MiB (default {DEFAULT_MEMORY_LIMIT // 2**20})")
     parser.add_argument("--jobs", type=int, default=None,
@@ -45,6 +46,7 @@ def main(argv=None):
                              "graded side by side, one sandbox each (default: one per CPU)")
     parser.add_argument("--brief", action="store_true", help="only the table, without the checks of each TODO")
     args = parser.parse_args(argv)
+    limit_own_memory()  # the trusted side too: nothing a worker sends can take it past this
     unknown = [todo for todo in args.todo or () if todo not in TODO_BY_ID]
     if unknown:
         parser.error(f"unknown TODO id(s): {', '.join(unknown)}; the handout's are {', '.join(TODO_BY_ID)}")

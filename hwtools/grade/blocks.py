@@ -14,59 +14,31 @@ import ast
 import hashlib
 import io
 import os
-import re
 import shutil
 import stat
 import tokenize
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
-MARKER = re.compile(
-    r"^(?P<indent>[ \t]*)###[ \t]*(?P<kind>BEGIN|END)[ \t]+(?P<style>SOLUTION|TODO)[ \t]+(?P<id>[0-9]+(?:\.[0-9]+)+)[ \t]*$"
-)
+from hwtools import markers
+
 MAX_FILE_BYTES = 1_000_000  # a submitted source file larger than this is not read
 PACKAGE = "hwlib"
+Block = markers.Block  # todo, begin, end, indent, body (the lines between the markers), style, module_level
 
 
 class SubmissionError(Exception):
-    """A submission file that cannot be read (missing, a link, too large, not UTF-8 text)."""
-
-
-@dataclass(frozen=True)
-class Block:
-    todo: str
-    begin: int  # index of the BEGIN line
-    end: int  # index of the END line
-    indent: str
-    body: tuple  # the lines between the markers
-    style: str = "SOLUTION"  # SOLUTION (instructor's kit) or TODO (student edition)
-
-    @property
-    def module_level(self):
-        return self.indent == ""
+    """A submission file that cannot be read (missing, a link, too large, not text Python can read)."""
 
 
 def find_blocks(text, where="<text>"):
-    """The fenced blocks of ``text``, in order. Unbalanced or nested markers raise SubmissionError."""
-    lines = text.split("\n")
-    blocks, open_block = [], None
-    for index, line in enumerate(lines):
-        match = MARKER.match(line)
-        if match is None:
-            continue
-        if match["kind"] == "BEGIN":
-            if open_block is not None:
-                raise SubmissionError(f"{where}:{index + 1}: BEGIN {match['id']} inside the open block {open_block[0]}")
-            open_block = (match["id"], index, match["indent"], match["style"])
-        else:
-            if open_block is None or open_block[0] != match["id"]:
-                raise SubmissionError(f"{where}:{index + 1}: END {match['id']} without its BEGIN")
-            todo, begin, indent, style = open_block
-            blocks.append(Block(todo, begin, index, indent, tuple(lines[begin + 1:index]), style))
-            open_block = None
-    if open_block is not None:
-        raise SubmissionError(f"{where}:{open_block[1] + 1}: BEGIN {open_block[0]} has no END")
-    return blocks
+    """The fenced blocks of ``text`` (either style), in order, by the rules of ``hwtools.markers``
+    (any line ends, markers with trailing white space or tabs). Unbalanced or nested markers raise
+    SubmissionError."""
+    try:
+        return markers.find_blocks(markers.split_lines(text), lambda index: f"{where}:{index + 1}")
+    except markers.MarkerError as error:
+        raise SubmissionError(str(error)) from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -75,8 +47,10 @@ def find_blocks(text, where="<text>"):
 
 
 def read_text(root, relative):
-    """The UTF-8 text of ``root/relative``, refusing links (of the file or any folder on the way),
-    anything but a regular file, and files over MAX_FILE_BYTES."""
+    """The text of ``root/relative`` as Python reads a source file (``markers.decode_python``: UTF-8
+    or the encoding its coding line names, a BOM dropped, ``\\r\\n`` and ``\\r`` made ``\\n``), refusing
+    links (of the file or any folder on the way), anything but a regular file, and files over
+    MAX_FILE_BYTES."""
     root = Path(root)
     path = root
     for part in PurePosixPath(relative).parts:
@@ -97,9 +71,9 @@ def read_text(root, relative):
     with os.fdopen(fd, "rb") as handle:
         data = handle.read(MAX_FILE_BYTES + 1)
     try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError:
-        raise SubmissionError(f"{relative}: not UTF-8 text") from None
+        return markers.decode_python(data, relative)
+    except markers.MarkerError as error:
+        raise SubmissionError(str(error)) from None
 
 
 @dataclass
@@ -112,6 +86,13 @@ class Submission:
     problems: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     texts: dict = field(default_factory=dict)  # relative path -> text, of the files read
+
+
+def _near_misses(text, todo):
+    """Where the file has a line that names TODO ``todo``'s marker but is not one (``# BEGIN TODO 1.2.1``)."""
+    lines = [(number, line.strip()) for number, line in enumerate(markers.split_lines(text), 1)
+             if markers.near_miss(line) and todo in line]
+    return "".join(f"; line {number} looks like a marker but is not one: {line[:80]!r}" for number, line in lines[:2])
 
 
 NOT_USED = ("conftest.py", "sitecustomize.py", "usercustomize.py", "pytest.ini", "setup.cfg", "tox.ini")
@@ -136,7 +117,8 @@ def read_submission(root, layout):
             found = [block.body for block in blocks if block.todo == todo]
             if len(found) != expected:
                 submission.problems[todo] = (f"{relative}: expected {expected} block(s) marked "
-                                             f"'### BEGIN TODO {todo}' ... '### END TODO {todo}', found {len(found)}")
+                                             f"'### BEGIN TODO {todo}' ... '### END TODO {todo}', found {len(found)}"
+                                             + _near_misses(text, todo))
             else:
                 submission.bodies[todo] = tuple(found)
     changed = []
@@ -188,7 +170,7 @@ def write_submission(layout, out_dir, bodies=None, others="stub", style="TODO"):
             if block.todo in bodies:
                 codes = bodies[block.todo]
                 code = codes if isinstance(codes, str) else codes[number]
-                lines = reindent(code.strip("\n").split("\n"), block.indent)
+                lines = reindent(markers.split_lines(code.strip("\r\n")), block.indent)
             elif others == "reference":
                 lines = list(block.body)
             else:
@@ -209,7 +191,7 @@ def write_submission(layout, out_dir, bodies=None, others="stub", style="TODO"):
 
 def skeleton(text):
     """The lines outside the blocks (markers reduced to the TODO id), to compare two editions."""
-    lines = text.split("\n")
+    lines = markers.split_lines(text)
     try:
         blocks = find_blocks(text)
     except SubmissionError:

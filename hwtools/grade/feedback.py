@@ -52,18 +52,31 @@ def render(result, details=True):
                                       "  "))
             failure = entry["first_failure"]
             if failure:
-                if failure["hidden"]:
-                    lines.extend(_wrapped(f"first failing check: {failure['check']}, on a hidden input (hidden inputs "
-                                          "are not shown; the visible ones of this check pass)", "  "))
-                else:
-                    lines.extend(_wrapped(f"first failing check: {failure['check']}", "  "))
-                    for name in ("input", "expected", "actual"):
-                        lines.extend(_wrapped(f"{name + ':':<10}{failure[name]}", "    "))
+                headline, fields = failure_words(failure)
+                lines.extend(_wrapped(headline, "  "))
+                for name, text in fields:
+                    lines.extend(_wrapped(f"{name + ':':<12}{text}", "    "))
             for note in entry["notes"]:
                 lines.extend(_wrapped(f"note: {note}", "  "))
             if entry["manual_possible"]:
                 lines.extend(_wrapped(f"by hand ({_points(entry['manual_possible'])} pt): {entry['manual']}", "  "))
     return "\n".join(lines) + "\n"
+
+
+FAILURE_FIELDS = ("input", "expected", "actual", "difference", "tolerance")
+
+
+def failure_words(failure):
+    """(headline, [(name, text)]): the words of a TODO's first failing check, the same in every
+    report (this text report: the student's preview and the instructor's grade; the class's
+    Markdown feedback and Gradescope). A visible input gives the input, the expected and actual
+    value, where they first differ (index, both values with digits enough to tell them apart,
+    the relative difference) and the tolerance; a hidden one only the check's description."""
+    if failure["hidden"]:
+        return (f"First failing check: {failure['check']}, on a hidden input (hidden inputs are not shown; the "
+                "visible ones of this check pass)."), []
+    return (f"First failing check: {failure['check']}",
+            [(name, str(failure[name])) for name in FAILURE_FIELDS if failure.get(name)])
 
 
 def _wrapped(text, indent):

@@ -351,6 +351,8 @@ class Grader:
                                               "input": self._scrub(checks.show(args)),
                                               "expected": self._scrub(verdict.expected),
                                               "actual": self._scrub(verdict.actual)}
+                    entry["first_failure"].update({name: self._scrub(getattr(verdict, name))  # checks' words
+                                                   for name in ("difference", "tolerance") if getattr(verdict, name)})
                 else:
                     entry["first_failure"] = {"check": behaviour.description, "hidden": True,
                                               "input": "a hidden input (not shown)"}

@@ -8,7 +8,7 @@ the environment variable ``AUTOGRADER_ROOT``, else ``/autograder``; under it ``s
 instructor's kit (the reference and the hidden checks), ``submission/`` the student's files,
 ``results/results.json`` the output. ``AUTOGRADER_TIME_LIMIT`` sets the seconds per TODO's run.
 
-The submission is read as a class's submissions are (``classroom.open_submission``: a folder or a
+The submission is read as a class's submissions are (``submissions.open_submission``: a folder or a
 zip holding ``hwlib/``, at the top or a folder or two down, or the bare library files; links,
 unsafe paths and oversized files refused) and graded by the sandboxed ``Grader``.
 
@@ -25,8 +25,16 @@ own rubric. ``stdout`` (the full text report, for the instructor) is ``hidden``.
 
 Once the reference and the hidden checks are in memory, the bundle's copies of ``hwlib/`` and
 ``instructor/`` are deleted from ``source/`` (only where the bundle's marker file says it is the
-bundle: Gradescope gives every submission a fresh container), so that student code run without
-the sandbox (where bubblewrap cannot create namespaces) finds no reference to read on disk.
+bundle: Gradescope gives every submission a fresh container), so that no student code finds a
+reference to read on disk.
+
+Isolation: bubblewrap where it can create namespaces; where it cannot (Docker's default seccomp
+profile refuses them, as Gradescope's containers very likely do), the unprivileged-user fallback
+(``user_sandbox.py``: one user per run, no network sockets, a private kit folder). Under the
+fallback the autograder also makes ``source/`` root's alone, takes the group and other write bits
+off everything under the root that runs later, and kills every process of the sandbox's users,
+found by uid, before it writes ``results.json`` (into ``results/``, which only root may write).
+The log and ``results.json``'s ``extra_data`` say which isolation graded the submission.
 """
 
 from __future__ import annotations
@@ -34,25 +42,19 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import stat
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 from hwtools.grade import blocks
-from hwtools.grade.classroom import (
-    GRADED,
-    NOT_ISOLATED,
-    UNGRADED_HELP,
-    Unusable,
-    kit_file_names,
-    md_escape,
-    open_submission,
-    status_of,
-    todo_markdown,
-)
+from hwtools.grade.class_feedback import UNGRADED_HELP, md_escape, todo_markdown
+from hwtools.grade.gradebook import GRADED, NOT_ISOLATED, status_of
+from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.grade.feedback import render
 from hwtools.grade.grader import Grader, GradingError
-from hwtools.grade.sandbox import DEFAULT_TIME_LIMIT
+from hwtools.grade.sandbox import DEFAULT_TIME_LIMIT, limit_own_memory
 from hwtools.todos import TODOS
 
 BUNDLE_MARKER = "hwgrade-bundle.json"  # at the root of the bundle's source: written by instructor/gradescope.py
@@ -95,9 +97,10 @@ def _tests(result):
     return tests
 
 
-def results_json(result, status, notes=(), seconds=0.0):
+def results_json(result, status, notes=(), seconds=0.0, sandbox=""):
     """Gradescope's results.json (a dict) for one submission: ``result`` is the grader's dict, or
-    None when the submission could not be graded (``status`` says why)."""
+    None when the submission could not be graded (``status`` says why); ``sandbox``: the kind of
+    isolation (bwrap, user or none)."""
     manual = sum(todo.manual for todo in TODOS)
     # the student's status: whether the sandbox worked is the instructor's business (extra_data, stdout)
     shown = "; ".join(part for part in status.split("; ") if part != NOT_ISOLATED) or GRADED
@@ -120,7 +123,7 @@ def results_json(result, status, notes=(), seconds=0.0):
         "stdout_visibility": "hidden",
         "tests": _tests(result),
         "extra_data": {"status": status, "isolated": bool(result and result["isolated"]),
-                       "isolation": result["isolation"] if result else ""},
+                       "isolation": result["isolation"] if result else "", "sandbox": sandbox},
     }
     return data
 
@@ -136,17 +139,54 @@ def _scrub(source):
     return True
 
 
+def harden(root, source):
+    """Under the user fallback: ``source/`` root's alone, and no group or other write bit on anything
+    under ``root`` that runs later (the submission aside); returns the paths it changed."""
+    changed = []
+    if source.is_dir() and source.stat().st_mode & 0o077:
+        source.chmod(0o700)
+        changed.append(str(source))
+    for folder, names, files in os.walk(root):
+        if Path(folder) == root / "submission":
+            names[:] = []
+            continue
+        for path in [folder, *(os.path.join(folder, name) for name in files)]:
+            info = os.lstat(path)
+            if not stat.S_ISLNK(info.st_mode) and info.st_mode & 0o022:
+                os.chmod(path, info.st_mode & ~0o022)
+                changed.append(path)
+    return changed
+
+
+def write_results(target, data):
+    """Write ``results.json`` atomically into its folder, made root's to write."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    if os.geteuid() == 0:
+        os.chown(target.parent, 0, 0)
+        target.parent.chmod(0o755)
+    handle, temporary = tempfile.mkstemp(prefix=".results-", suffix=".json", dir=target.parent)
+    with os.fdopen(handle, "w", encoding="utf-8") as stream:
+        stream.write(json.dumps(data, indent=1) + "\n")
+        os.fchmod(stream.fileno(), 0o644)
+    os.replace(temporary, target)
+
+
 def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdout):
     """Grade ``ROOT/submission`` against ``ROOT/source``; write and return the results dict."""
     started = time.monotonic()
     paths = autograder_paths(root)
     time_limit = float(time_limit or os.environ.get("AUTOGRADER_TIME_LIMIT") or DEFAULT_TIME_LIMIT)
     grader = Grader(paths["source"], python=python, isolation=isolation, time_limit=time_limit)  # up to 4 runs at once
+    box = grader.sandbox
     kit_names = kit_file_names(grader.layout)
     scrubbed = _scrub(paths["source"])
-    out.write(f"sandbox: {grader.sandbox.how if grader.sandbox.isolated else 'NOT ISOLATED: ' + grader.sandbox.how}\n"
+    out.write(f"sandbox: {box.kind}: {box.how if box.isolated else 'NOT ISOLATED: ' + box.how}\n"
               f"grader: {Path(__file__).resolve().parent}; reference: {paths['source']} (hwlib and hidden checks "
               f"{'deleted from disk once loaded' if scrubbed else 'left on disk'})\n")
+    if box.kind == "user":
+        changed = harden(paths["root"], paths["source"])
+        out.write(f"user sandbox: source/ is root's alone; {len(changed)} path(s) under {paths['root']} made "
+                  "unwritable to other users\n")
     try:
         with open_submission(paths["submission"], kit_names) as opened:
             result = grader.grade(opened.kit)
@@ -154,12 +194,14 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
             status, notes = status_of(result), opened.notes
     except Unusable as unusable:
         result, status, notes = None, unusable.text, []
-    data = results_json(result, status, notes, time.monotonic() - started)
-    target = paths["results"]
-    target.parent.mkdir(parents=True, exist_ok=True)
-    temporary = target.with_name(target.name + ".part")
-    temporary.write_text(json.dumps(data, indent=1) + "\n", encoding="utf-8")
-    os.replace(temporary, target)
+    if box.kind == "user":
+        from hwtools.grade.user_sandbox import kill_all_users  # noqa: PLC0415
+
+        if not kill_all_users():
+            raise GradingError("a process of the sandbox's users could not be killed: no results written")
+        out.write("user sandbox: every process of the sandbox's users killed before results.json was written\n")
+    data = results_json(result, status, notes, time.monotonic() - started, sandbox=box.kind)
+    write_results(paths["results"], data)
     out.write(f"status: {status}; score {data['score']:g}\n")
     if result is not None:
         out.write(render(result))
@@ -175,6 +217,8 @@ def main(argv=None):
     parser.add_argument("--time-limit", type=float, metavar="SECONDS",
                         help=f"per TODO's run (default: $AUTOGRADER_TIME_LIMIT, else {DEFAULT_TIME_LIMIT:g})")
     args = parser.parse_args(argv)
+    limit = limit_own_memory()
+    print(f"grader memory limit: {limit // 2**20} MiB")
     try:
         run(args.root, args.time_limit)
     except GradingError as error:

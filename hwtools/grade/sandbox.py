@@ -1,54 +1,68 @@
 """Run the worker on a kit in a separate, sandboxed process, with limits, and talk to it.
 
-With bubblewrap (``bwrap``) the worker runs in new namespaces (``--unshare-all``: no network, its
-own processes, hostname and IPC), as an unprivileged user without capabilities, and sees only:
+Three ways to run it (``Sandbox.kind``), the strongest that works here chosen by ``isolation="auto"``:
+
+``bwrap`` (bubblewrap, ``bwrap_sandbox.py``): the worker runs in new namespaces (``--unshare-all``: no network, its own
+processes, hostname and IPC), as an unprivileged user without capabilities, and sees only:
 
 * the operating system's ``/usr`` (and the ``/bin``, ``/lib`` links into it), read-only;
-* the Python installation and the virtual environment that run it, read-only;
+* the Python installation and the virtual environment that run it, read-only, at their paths;
 * the kit under test (one composite copy of ``hwlib/``), read-only, as ``/kit``;
 * the worker script, read-only, as ``/grader/worker.py``;
 * a fresh, size-limited tmpfs as ``/tmp`` (its home is ``/tmp/home``), a private ``/proc`` and a
   minimal ``/dev``.
 
-Not the instructor's kit, its hidden checks, the reference solutions of other TODOs, the
-submission folder, or the network. Inputs and answers cross through the worker's standard
-input and output as npz messages (``worker.py``); nothing is written for the grader to read. Every
-run has a CPU-time limit and an address-space limit (``prlimit`` before the worker starts, and
-again by the worker itself before it imports the kit), and a wall-clock limit after which the
-whole sandbox is killed; ``--die-with-parent`` and the private process namespace end every
-process the student's code started (a fork that outlives the run dies with the sandbox).
+bubblewrap itself starts with an empty environment and reads its options from a pipe (``--args``),
+so the sandbox's ``/proc/1`` (bubblewrap's init) shows neither the grader's environment nor the
+host paths of the kit and the worker.
 
-Where ``bwrap`` is missing or cannot create namespaces, the worker runs as a plain subprocess
-with the same limits and messages but without isolation; ``Sandbox.isolated`` is then False
-and the reason is in ``Sandbox.how``.
+``user`` (where bubblewrap cannot create namespaces, as in Docker's default seccomp profile, e.g.
+Gradescope): an unprivileged user of its own per run, no network sockets, a private kit folder
+(``user_sandbox.py`` says what that does and does not hide).
+
+``none``: a plain subprocess, with the same limits and messages but no isolation;
+``Sandbox.isolated`` is then False and ``Sandbox.how`` says why.
+
+Every run has a CPU-time limit, an address-space limit, a file-size limit (``prlimit`` before the
+worker starts, and again by the worker itself before it imports the kit), and a wall-clock
+backstop (``WALL_FACTOR`` times the CPU limit plus ``WALL_SLACK``) against code that sleeps or
+waits: a loaded machine slows a run down without turning it into a time-out. The worker's error
+stream goes to a file, never a pipe, so a child that keeps it open cannot hold the grader; every
+read of the answers is bounded by the deadline. At the end the whole sandbox is killed (the
+process namespace, the run's user, or the process group and an environment token).
+
+The grader's own process can be put under a memory limit too (``limit_own_memory``; the command
+lines do), so that nothing a worker sends can take the trusted side down.
 """
 
 from __future__ import annotations
 
-import functools
-import json
 import os
+import resource
 import select
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from hwtools.grade import worker as protocol
+from hwtools.grade.bwrap_sandbox import bwrap_options, options_pipe, probe_isolation, worker_env
 
 WORKER = Path(__file__).resolve().with_name("worker.py")
 GiB = 1024**3
-DEFAULT_TIME_LIMIT = 60.0  # seconds of wall clock per worker run
+DEFAULT_TIME_LIMIT = 60.0  # seconds of CPU time per worker run
 DEFAULT_MEMORY_LIMIT = 1 * GiB  # address space per worker run
-TMPFS_BYTES = 64 * 1024**2
+GRADER_MEMORY_LIMIT = 4 * GiB  # address space of the trusted grader itself (command lines)
+WALL_FACTOR, WALL_SLACK = 3.0, 10.0  # the wall-clock backstop: WALL_FACTOR * CPU limit + WALL_SLACK
+MAX_FILE_BYTES = 64 * 1024**2  # any one file a run writes (its error stream included)
 STDERR_TAIL = 4000  # characters of the worker's error stream kept
 TOKEN_VARIABLE = "HWGRADE_SANDBOX"
+KINDS = ("auto", "bwrap", "user", "none")
 
 
 @dataclass
@@ -65,120 +79,81 @@ class RunOutcome:
     exit_code: int | None = None
 
 
-@functools.lru_cache(maxsize=None)
-def installed_kit(python):
-    """Where ``python`` would import ``hwlib`` from outside any kit folder, if it is a copy inside
-    its own installation (``pip install .`` without ``-e``): the sandbox could read that copy."""
-    code = ("import importlib.util, os, sys; sys.path = [p for p in sys.path if p and os.path.isdir(p) and "
-            "'site-packages' in p or p.startswith(sys.base_prefix)]; spec = importlib.util.find_spec('hwlib'); "
-            "print(os.path.realpath(spec.origin) if spec and spec.origin else '')")
-    try:
-        origin = subprocess.run([python, "-I", "-c", code], capture_output=True, text=True, timeout=60,
-                                cwd="/").stdout.strip()
-    except (OSError, subprocess.TimeoutExpired):
-        return ""
-    return origin if origin and any(origin.startswith(path + os.sep) for path in python_paths(python)) else ""
+def wall_limit(time_limit):
+    """The wall-clock seconds a run of CPU limit ``time_limit`` may last at most."""
+    return WALL_FACTOR * float(time_limit) + WALL_SLACK
 
 
-@functools.lru_cache(maxsize=None)
-def python_paths(python):
-    """The folders a Python needs: its prefix (the venv), base prefix (the installation) and the
-    folder of the real executable."""
-    code = ("import sys, json, os; print(json.dumps([sys.prefix, sys.base_prefix, sys.exec_prefix, "
-            "sys.base_exec_prefix, os.path.dirname(os.path.realpath(sys.executable))]))")
-    output = subprocess.run([python, "-I", "-c", code], capture_output=True, text=True, check=True, timeout=60).stdout
-    return tuple(dict.fromkeys(os.path.realpath(path) for path in json.loads(output)))
-
-
-def _system_binds():
-    args = ["--ro-bind", "/usr", "/usr"]
-    for name in ("bin", "sbin", "lib", "lib32", "lib64", "libx32"):
-        path = Path("/") / name
-        if path.is_symlink():
-            args += ["--symlink", os.readlink(path), str(path)]
-        elif path.is_dir():
-            args += ["--ro-bind", str(path), str(path)]
-    return args
-
-
-def bwrap_command(python, kit_dir, worker=WORKER):
-    """The bubblewrap command line that runs ``worker`` on ``kit_dir`` (without the worker's arguments)."""
-    args = ["bwrap", "--unshare-all", "--unshare-user", "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL",
-            "--die-with-parent", "--new-session", "--hostname", "sandbox"]
-    args += _system_binds()
-    # /tmp first: a Python installed under /tmp (a CI checkout there) is bound on top of it, not hidden by it
-    args += ["--proc", "/proc", "--dev", "/dev", "--size", str(TMPFS_BYTES), "--tmpfs", "/tmp", "--dir", "/tmp/home"]
-    for path in python_paths(python):
-        if not path.startswith("/usr/"):
-            args += ["--ro-bind", path, path]
-    venv_python = os.path.abspath(python)
-    args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(worker), "/grader/worker.py",
-             "--chdir", "/tmp", "--clearenv"]
-    for key, value in _worker_env("/tmp/home").items():
-        args += ["--setenv", key, value]
-    return args + ["--", venv_python, "-B", "-s", "/grader/worker.py", "/kit"]
-
-
-def _worker_env(home):
-    return {"PATH": "/usr/bin:/bin", "HOME": home, "TMPDIR": "/tmp" if home.startswith("/tmp/") else home,
-            "LANG": "C.UTF-8", "MPLBACKEND": "Agg", "PYTHONHASHSEED": "0", "PYTHONDONTWRITEBYTECODE": "1",
-            "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-
-
-@functools.lru_cache(maxsize=None)
-def probe_isolation(python):
-    """(True, how) if bwrap can run ``python`` in new namespaces here, else (False, why not)."""
-    if shutil.which("bwrap") is None:
-        return False, "bubblewrap (bwrap) is not installed (Debian/Ubuntu: apt-get install bubblewrap)"
-    with tempfile.TemporaryDirectory(prefix="hwgrade-probe-") as kit:
-        command = bwrap_command(python, kit)
-        command = command[:command.index("--") + 1] + [os.path.abspath(python), "-c", "import numpy"]
-        try:
-            result = subprocess.run(command, capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL)
-        except (OSError, subprocess.TimeoutExpired) as error:
-            return False, f"bwrap could not start: {error}"
-    if result.returncode != 0:
-        reason = " ".join(result.stderr.split())[:300]
-        return False, f"bwrap cannot create a sandbox here ({reason or 'exit code ' + str(result.returncode)})"
-    version = subprocess.run(["bwrap", "--version"], capture_output=True, text=True).stdout.strip()
-    how = f"{version or 'bubblewrap'}: no network, read-only Python and kit, private /tmp, /proc and users"
-    copy = installed_kit(python)
-    if copy:
-        how += (f"; WARNING: {python} has a copy of hwlib installed at {os.path.dirname(copy)} (pip install "
-                "without -e), which the sandbox can read: reinstall with pip install -e .")
-    return True, how
+def limit_own_memory(limit=GRADER_MEMORY_LIMIT):
+    """Put this (the trusted) process under an address-space limit of ``limit`` bytes, unless a
+    lower one is already set; returns the limit in force."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    if hard != resource.RLIM_INFINITY:
+        limit = min(limit, hard)
+    if soft == resource.RLIM_INFINITY or soft > limit:
+        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+        soft = limit
+    return soft
 
 
 class Sandbox:
-    """Runs the worker on kits, isolated where bubblewrap works (``isolated``, ``how``).
+    """Runs the worker on kits, isolated where it can be (``kind``, ``isolated``, ``how``).
 
-    ``isolation``: "auto" (bubblewrap if it works, else a plain subprocess), "bwrap" (fail if it
-    does not work) or "none" (a plain subprocess, e.g. for benchmarks).
+    ``isolation``: "auto" (bubblewrap if it works, else the unprivileged-user fallback if it is set
+    up, else a plain subprocess), "bwrap" or "user" (fail if that one does not work), or "none" (a
+    plain subprocess, e.g. for benchmarks). ``time_limit``: CPU seconds per run (the wall clock
+    is a backstop, ``wall_limit``); ``memory_limit``: bytes of address space per run.
     """
 
     def __init__(self, python=None, isolation="auto", time_limit=DEFAULT_TIME_LIMIT, memory_limit=DEFAULT_MEMORY_LIMIT):
         self.python = str(python or sys.executable)
-        if isolation not in ("auto", "bwrap", "none"):
-            raise ValueError(f"isolation must be 'auto', 'bwrap' or 'none', got {isolation!r}")
-        if isolation == "none":
-            self.isolated, self.how = False, "isolation turned off (isolation='none')"
-        else:
-            self.isolated, self.how = probe_isolation(self.python)
-            if isolation == "bwrap" and not self.isolated:
-                raise RuntimeError(f"no sandbox: {self.how}")
+        if isolation not in KINDS:
+            raise ValueError(f"isolation must be one of {', '.join(map(repr, KINDS))}, got {isolation!r}")
+        self.kind, self.how = "none", "isolation turned off (isolation='none')"
+        reasons = []
+        if isolation in ("auto", "bwrap"):
+            works, how = probe_isolation(self.python)
+            if works:
+                self.kind, self.how = "bwrap", how
+            elif isolation == "bwrap":
+                raise RuntimeError(f"no sandbox: {how}")
+            reasons.append(how)
+        if isolation in ("auto", "user") and self.kind == "none":
+            from hwtools.grade import user_sandbox  # noqa: PLC0415 - also run as a command (python -m)
+
+            works, how = user_sandbox.probe(self.python)
+            if works:
+                self.kind, self.how = "user", f"{how} (bubblewrap: {reasons[0]})" if reasons else how
+            elif isolation == "user":
+                raise RuntimeError(f"no sandbox: {how}")
+            reasons.append(f"no unprivileged-user fallback: {how}")
+        if self.kind == "none" and isolation == "auto":
+            self.how = "; ".join(reasons)
+        self.isolated = self.kind != "none"
         self.time_limit = float(time_limit)
         self.memory_limit = int(memory_limit)
 
-    def command(self, kit_dir, time_limit):
+    def limits(self, time_limit):
+        """prlimit's options and the worker's own limit arguments for a run of CPU limit ``time_limit``."""
         cpu = max(1, int(time_limit + 0.999))
-        limits = [str(cpu), str(self.memory_limit)]
-        if self.isolated:
-            command = bwrap_command(self.python, kit_dir) + limits
-        else:
-            command = [self.python, "-B", "-s", str(WORKER), str(kit_dir)] + limits
-        if shutil.which("prlimit"):
-            command = ["prlimit", f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", "--"] + command
-        return command
+        options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}"]
+        if self.kind == "user":
+            from hwtools.grade.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
+
+            options.append(f"--nproc={MAX_PROCESSES}")
+        return options, [str(cpu), str(self.memory_limit)]
+
+    def command(self, kit_dir, time_limit, run_folder=None):
+        """The command line of one run (``run_folder``: the user fallback's private folder) and the
+        options bubblewrap reads from a pipe (None for the other kinds)."""
+        options, limits = self.limits(time_limit)
+        prlimit = [shutil.which("prlimit"), *options, "--"] if shutil.which("prlimit") else []
+        if self.kind == "bwrap":
+            return (prlimit + [shutil.which("bwrap"), "--args", "{fd}", "--", os.path.abspath(self.python), "-B", "-s",
+                               "/grader/worker.py", "/kit"] + limits, bwrap_options(self.python, kit_dir))
+        if self.kind == "user":
+            return prlimit + run_folder.command(self.python) + limits, None
+        return prlimit + [self.python, "-B", "-s", str(WORKER), str(kit_dir)] + limits, None
 
     def start(self, kit_dir, time_limit=None):
         """Start one worker on ``kit_dir``: a ``WorkerProcess`` to talk to (``send``/``receive``) and
@@ -215,23 +190,43 @@ class Sandbox:
 
 class WorkerProcess:
     """One running worker: its standard input takes requests, its standard output gives answers,
-    both npz messages (``worker.py``). ``deadline`` (monotonic seconds) ends it at the latest."""
+    both npz messages (``worker.py``); its error stream goes to a file. ``deadline`` (monotonic
+    seconds, the wall-clock backstop) ends it at the latest."""
 
     def __init__(self, sandbox, kit_dir, time_limit):
         self.sandbox, self.time_limit = sandbox, time_limit
         self.started = time.monotonic()
-        self.deadline = self.started + time_limit
+        self.deadline = self.started + wall_limit(time_limit)
+        self._killed = False
         self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-")
         self._token = uuid.uuid4().hex
-        env = None
-        if not sandbox.isolated:
-            home = Path(self._scratch.name) / "home"
-            home.mkdir()
-            env = _worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
-        self.process = subprocess.Popen(
-            sandbox.command(kit_dir, time_limit), stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-            cwd=self._scratch.name, env=env, start_new_session=True, close_fds=True)
-        self._tail = _Tail(self.process.stderr)
+        self._run_folder = None
+        env, cwd, fds = {}, self._scratch.name, ()
+        try:
+            if sandbox.kind == "user":
+                from hwtools.grade.user_sandbox import RunFolder  # noqa: PLC0415
+
+                self._run_folder = RunFolder(kit_dir, WORKER)
+                env, cwd = worker_env(str(self._run_folder.home)), str(self._run_folder.home)
+            elif sandbox.kind == "none":
+                home = Path(self._scratch.name) / "home"
+                home.mkdir()
+                env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
+            command, options = sandbox.command(kit_dir, time_limit, self._run_folder)
+            if options is not None:
+                fds = (options_pipe(options),)
+                command = [part.replace("{fd}", str(fds[0])) for part in command]
+            self._stderr = open(Path(self._scratch.name) / "stderr", "w+b")  # noqa: SIM115 - closed in finish
+            try:
+                self.process = subprocess.Popen(
+                    command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=self._stderr, cwd=cwd, env=env,
+                    start_new_session=True, close_fds=True, pass_fds=fds)
+            finally:
+                for fd in fds:
+                    os.close(fd)
+        except BaseException:
+            self._cleanup()
+            raise
 
     def send(self, message):
         """Write one request (raises BrokenPipeError/OSError when the worker no longer reads)."""
@@ -239,19 +234,43 @@ class WorkerProcess:
 
     def receive(self, deadline=None):
         """The next answer (a dict), or "status:detail" (timeout, ended, garbled)."""
-        return _read_answer(self.process.stdout.fileno(), self.deadline if deadline is None else min(deadline, self.deadline))
+        deadline = self.deadline if deadline is None else min(deadline, self.deadline)
+        answer = _read_answer(self.process.stdout.fileno(), deadline)
+        if answer == "ended:" and self._cpu_limit_reached():
+            return f"timeout:the CPU-time limit of {self.sandbox.limits(self.time_limit)[1][0]} s was reached"
+        if isinstance(answer, str) and answer.startswith("timeout:"):
+            return f"timeout:the wall-clock limit of {wall_limit(self.time_limit):.0f} s was reached (the code waited)"
+        return answer
+
+    def _cpu_limit_reached(self):
+        """Whether the worker, its answers' channel closed, was killed by SIGKILL that the grader did
+        not send: the CPU-time limit (its soft and hard limits are equal)."""
+        try:
+            code = self.process.wait(timeout=2.0)
+        except subprocess.TimeoutExpired:
+            return False
+        return not self._killed and code in (-signal.SIGKILL, 128 + signal.SIGKILL)
 
     def finish(self, graceful=True):
         """End the worker and everything it started; (exit code, last lines of its error stream, seconds).
         ``graceful``: give it until the deadline to exit on its own (it was told to), else kill now."""
         try:
-            code = _finish(self.process, self.deadline if graceful else time.monotonic())
-            if not self.sandbox.isolated:
+            code = _finish(self, self.deadline if graceful else time.monotonic())
+            if self.sandbox.kind == "none":
                 _kill_strays(self._token)
-            self._tail.join()
-            return code, self._tail.text(), round(time.monotonic() - self.started, 3)
+            if self._run_folder is not None:
+                self._run_folder.end()
+            return code, _tail(self._stderr), round(time.monotonic() - self.started, 3)
         finally:
-            self._scratch.cleanup()
+            self._cleanup()
+
+    def _cleanup(self):
+        if self._run_folder is not None:
+            self._run_folder.end()
+        stream = getattr(self, "_stderr", None)
+        if stream is not None:
+            stream.close()
+        self._scratch.cleanup()
 
 
 def _read_answer(fd, deadline):
@@ -289,8 +308,9 @@ def _read_answer(fd, deadline):
         return answer
 
 
-def _finish(process, deadline):
+def _finish(worker, deadline):
     """Wait for the worker until ``deadline``, then kill its whole process group; the exit code."""
+    process = worker.process
     try:
         process.stdin.close()
     except OSError:
@@ -299,6 +319,8 @@ def _finish(process, deadline):
         process.wait(timeout=max(0.0, min(deadline - time.monotonic(), 10.0)))
     except subprocess.TimeoutExpired:
         pass
+    if process.returncode is None:
+        worker._killed = True
     try:
         os.killpg(process.pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
@@ -308,9 +330,17 @@ def _finish(process, deadline):
     return code
 
 
+def _tail(stream):
+    """The last STDERR_TAIL characters of the error-stream file (read from the end: it may be large)."""
+    size = os.fstat(stream.fileno()).st_size
+    stream.seek(max(0, size - STDERR_TAIL * 4))
+    return stream.read(STDERR_TAIL * 4).decode("utf-8", "replace")[-STDERR_TAIL:]
+
+
 def _kill_strays(token, rounds=5):
     """Without a sandbox: kill every process that still carries this run's token in its
-    environment (children that left the worker's process group), until a scan finds none."""
+    environment (children that left the worker's process group), until a scan finds none. A
+    child that clears its environment escapes this: only a sandbox ends every process."""
     needle = f"{TOKEN_VARIABLE}={token}".encode()
     for _ in range(rounds):
         killed = 0
@@ -334,34 +364,11 @@ def _ended_detail(code, detail):
         return detail
     if code is None:
         return "the worker ended before answering"
+    if code > 128 and code - 128 in signal.Signals._value2member_map_:  # bubblewrap passes a signal on as 128 + it
+        code = 128 - code
     if code < 0:
         name = signal.Signals(-code).name if -code in signal.Signals._value2member_map_ else str(-code)
-        why = {"SIGXCPU": " (the CPU-time limit)", "SIGKILL": " (killed: a limit was reached)"}.get(name, "")
+        why = {"SIGXCPU": " (the CPU-time limit)", "SIGKILL": " (killed: a limit was reached)",
+               "SIGXFSZ": " (the file-size limit: too much output?)"}.get(name, "")
         return f"the worker was ended by {name}{why} before answering"
     return f"the worker ended with exit code {code} before answering (sys.exit or os._exit in the code?)"
-
-
-class _Tail:
-    """Reads a stream to its end in a thread, keeping only its last STDERR_TAIL characters."""
-
-    def __init__(self, stream):
-        self._stream, self._data = stream, b""
-        self._thread = threading.Thread(target=self._read, daemon=True)
-        self._thread.start()
-
-    def _read(self):
-        try:
-            for chunk in iter(lambda: self._stream.read1(65536), b""):
-                self._data = (self._data + chunk)[-STDERR_TAIL * 4:]
-        except (OSError, ValueError):
-            pass
-
-    def join(self):
-        self._thread.join(timeout=5)
-        try:
-            self._stream.close()
-        except OSError:
-            pass
-
-    def text(self):
-        return self._data.decode("utf-8", "replace")[-STDERR_TAIL:]

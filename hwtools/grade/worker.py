@@ -398,6 +398,8 @@ def probe_gradient_step(args):
 def probe_one_vs_rest(args):
     logreg = _import("hwlib.logreg")
     model = logreg.MultiClassLogisticRegressionClassifier(int(args["n_features"]), int(args["n_classes"]))
+    for c, start in enumerate(np.array(args.get("initial_weights", ()), dtype=np.float64)):  # where fit starts
+        model.classifiers[c].weights = start.copy()
     accuracies = model.fit(np.array(args["X"], dtype=np.float64), np.array(args["y"]),
                            float(args["learning_rate"]), int(args["n_iters"]))
     weights = np.array([numbers(c.weights, "classifiers[c].weights") for c in model.classifiers])
@@ -409,6 +411,36 @@ def probe_ll_gradient(args):
     gradient = logreg.log_likelihood_gradient(np.array(args["weights"], dtype=np.float64),
                                               np.array(args["X"], dtype=np.float64), np.array(args["y"]))
     return {"gradient": numbers(gradient, "log_likelihood_gradient")}
+
+
+def _action_kind(value):
+    """0: a type ``env.step`` takes (gymnasium's own test: an int, bools included, a numpy integer,
+    a 0-d integer array); else what it is: 1 a numpy bool, 2 a float, 3 an array, 4 anything else."""
+    import gymnasium  # noqa: PLC0415 - the kit's own dependency, there in the sandbox
+
+    if gymnasium.spaces.Discrete(2).contains(value):
+        return 0
+    if isinstance(value, np.bool_):
+        return 1
+    if isinstance(value, (float, np.floating)):
+        return 2
+    return 3 if isinstance(value, np.ndarray) else 4
+
+
+def probe_policy_choices(args):
+    """The policy's action on each (params, obs) row as a number (whatever numeric type it came
+    in), and whether env.step takes it as it is (``accepted``, with its ``kinds``)."""
+    cartpole = _import("hwlib.cartpole")
+    params, observations = np.asarray(args["params"]), np.asarray(args["obs"])
+    actions, kinds = [], []
+    for p, o in zip(params, observations):
+        value = cartpole.CartPoleLinearPolicy(p.copy())(o.copy())
+        if not isinstance(value, _PLAIN) or np.asarray(value).dtype.kind not in "biuf" or np.asarray(value).size != 1:
+            raise TypeError(f"the policy returned {type(value).__module__}.{type(value).__name__}, not the number 0 or 1")
+        kinds.append(_action_kind(value))
+        actions.append(float(np.asarray(value, dtype=np.float64).reshape(())))
+    return {"actions": np.array(actions, dtype=np.float64), "accepted": np.array(kinds) == 0,
+            "kinds": np.array(kinds, dtype=np.int64)}
 
 
 # Services: run on the reference kit only, to re-score what a student's run produced.

@@ -17,29 +17,35 @@ HIDDEN_SEED = 0x6F3A_91C2_57D4_0B1E  # instructor-only; pick a new one per offer
 
 # Behaviours with more (or fewer) hidden inputs than visible ones.
 COUNTS = {
-    "1.1.1/equation-1": 3,
+    "1.1.1/equation-1": 2,  # and the ties chosen by hand below
+    "1.2.1/equation-3": 3,
     "1.2.1/one-step": 3,
-    "1.2.1/step-per-coordinate": 3,
     "1.3.1/mean-reward": 3,
     "1.3.2/equation-4": 2,
     "1.3.2/records-reward": 2,
     "1.3.2/real-run": 1,
     "1.3.3/converges": 0,  # the handout asks about the notebook's run only
     "2.2.1/values": 4,
+    "2.2.1/precision": 2,
+    "2.3.1/iterations": 3,
 }
 
 
 def _extra_cases(behaviour_id):
     """Inputs chosen by hand, beyond the generated ones."""
-    if behaviour_id == "1.2.1/step-per-coordinate":
+    if behaviour_id == "1.2.1/equation-3":
         # one tiny and one large step next to each other: an h taken from the wrong coordinate shows at once
         return [{"f": {"kind": "coupled", "a": np.array([1.5, -0.7, 2.0]), "b": np.array([0.4, -1.1, 0.3]),
                        "m": np.array([[0.5, -0.2, 0.1], [0.3, 0.8, -0.6], [0.0, 0.7, -0.4]])},
                  "x": np.array([0.3, -1.2, 1.7]), "h": np.array([0.01, 0.9, 0.2])}]
     if behaviour_id == "1.3.1/mean-reward":
         return [{"params": np.array([0.0, 0.0, 0.0, 0.0]), "num_rollouts": 5, "seed": 4242}]
-    if behaviour_id == "2.2.1/tails":
+    if behaviour_id == "2.2.1/any-shape":
         return [{"z": np.array([[-800.0, 800.0], [-36.0, 36.0]])}]
+    if behaviour_id == "1.1.1/equation-1":
+        # ties whose score is exactly 0 in any order of summation, with halves as well as whole numbers
+        return [{"params": np.array([[0.5, -1.0, 2.0, 0.25], [1.0, 1.0, 0.0, -1.0], [0.0, 0.0, 0.0, 0.0]]),
+                 "obs": np.array([[1.0, 0.5, 0.0, 0.0], [0.5, -0.25, 3.0, 0.25], [0.01, -0.02, 0.03, 0.04]])}]
     return []
 
 

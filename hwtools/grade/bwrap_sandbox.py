@@ -1,0 +1,123 @@
+"""The bubblewrap sandbox: the options that make it (``bwrap_options``, given to ``bwrap`` through a
+pipe with ``--args``) and the probe that says whether it works here (``probe_isolation``).
+
+What the options give the worker is in ``sandbox.py``'s docstring: new namespaces (no network, its
+own processes, hostname and IPC), an unprivileged uid without capabilities, read-only ``/usr``,
+Python and kit (``/kit``) and worker (``/grader/worker.py``), a fresh size-limited ``/tmp``, a
+private ``/proc``, a minimal ``/dev``, and only the worker's own environment.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+TMPFS_BYTES = 64 * 1024**2
+WORKER = Path(__file__).resolve().with_name("worker.py")
+
+
+@functools.lru_cache(maxsize=None)
+def installed_kit(python):
+    """Where ``python`` would import ``hwlib`` from outside any kit folder, if it is a copy inside
+    its own installation (``pip install .`` without ``-e``): the sandbox could read that copy."""
+    code = ("import importlib.util, os, sys; sys.path = [p for p in sys.path if p and os.path.isdir(p) and "
+            "'site-packages' in p or p.startswith(sys.base_prefix)]; spec = importlib.util.find_spec('hwlib'); "
+            "print(os.path.realpath(spec.origin) if spec and spec.origin else '')")
+    try:
+        origin = subprocess.run([python, "-I", "-c", code], capture_output=True, text=True, timeout=60,
+                                cwd="/").stdout.strip()
+    except (OSError, subprocess.TimeoutExpired):
+        return ""
+    return origin if origin and any(origin.startswith(path + os.sep) for path in python_paths(python)) else ""
+
+
+@functools.lru_cache(maxsize=None)
+def python_paths(python):
+    """The folders a Python needs: its prefix (the venv), base prefix (the installation) and the
+    folder of the real executable."""
+    code = ("import sys, json, os; print(json.dumps([sys.prefix, sys.base_prefix, sys.exec_prefix, "
+            "sys.base_exec_prefix, os.path.dirname(os.path.realpath(sys.executable))]))")
+    output = subprocess.run([python, "-I", "-c", code], capture_output=True, text=True, check=True, timeout=60).stdout
+    return tuple(dict.fromkeys(os.path.realpath(path) for path in json.loads(output)))
+
+
+def _system_binds():
+    args = ["--ro-bind", "/usr", "/usr"]
+    for name in ("bin", "sbin", "lib", "lib32", "lib64", "libx32"):
+        path = Path("/") / name
+        if path.is_symlink():
+            args += ["--symlink", os.readlink(path), str(path)]
+        elif path.is_dir():
+            args += ["--ro-bind", str(path), str(path)]
+    return args
+
+
+def bwrap_options(python, kit_dir, worker=WORKER):
+    """bubblewrap's options (given to it through a pipe, not on its command line) that run a
+    Python on ``kit_dir`` with ``worker`` as ``/grader/worker.py``."""
+    args = ["--unshare-all", "--unshare-user", "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL",
+            "--die-with-parent", "--new-session", "--hostname", "sandbox"]
+    args += _system_binds()
+    # /tmp first: a Python installed under /tmp (a CI checkout there) is bound on top of it, not hidden by it
+    args += ["--proc", "/proc", "--dev", "/dev", "--size", str(TMPFS_BYTES), "--tmpfs", "/tmp", "--dir", "/tmp/home"]
+    for path in python_paths(python):
+        if not path.startswith("/usr/"):
+            args += ["--ro-bind", path, path]
+    args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(worker), "/grader/worker.py",
+             "--chdir", "/tmp", "--clearenv"]
+    for key, value in worker_env("/tmp/home").items():
+        args += ["--setenv", key, value]
+    return args
+
+
+def options_pipe(options):
+    """A pipe's read end holding bubblewrap's options, NUL-separated (``bwrap --args FD``)."""
+    data = b"".join(option.encode() + b"\0" for option in options)
+    read, write = os.pipe()
+    try:
+        if len(data) > 60_000:  # a pipe holds 64 KiB before the writer blocks
+            raise ValueError("bubblewrap's options do not fit in a pipe")
+        os.write(write, data)
+    finally:
+        os.close(write)
+    return read
+
+
+@functools.lru_cache(maxsize=None)
+def probe_isolation(python):
+    """(True, how) if bwrap can run ``python`` in new namespaces here, else (False, why not)."""
+    bwrap = shutil.which("bwrap")
+    if bwrap is None:
+        return False, "bubblewrap (bwrap) is not installed (Debian/Ubuntu: apt-get install bubblewrap)"
+    with tempfile.TemporaryDirectory(prefix="hwgrade-probe-") as kit:
+        fd = options_pipe(bwrap_options(python, kit))
+        try:
+            result = subprocess.run([bwrap, "--args", str(fd), "--", os.path.abspath(python), "-c", "import numpy"],
+                                    capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL, env={},
+                                    pass_fds=(fd,))
+        except (OSError, subprocess.TimeoutExpired) as error:
+            return False, f"bwrap could not start: {error}"
+        finally:
+            os.close(fd)
+    if result.returncode != 0:
+        reason = " ".join(result.stderr.split())[:300]
+        return False, f"bwrap cannot create a sandbox here ({reason or 'exit code ' + str(result.returncode)})"
+    version = subprocess.run([bwrap, "--version"], capture_output=True, text=True, env={}).stdout.strip()
+    how = f"{version or 'bubblewrap'}: no network, read-only Python and kit, private /tmp, /proc and users"
+    copy = installed_kit(python)
+    if copy:
+        how += (f"; WARNING: {python} has a copy of hwlib installed at {os.path.dirname(copy)} (pip install "
+                "without -e), which the sandbox can read: reinstall with pip install -e .")
+    return True, how
+
+
+def worker_env(home):
+    """The only environment a worker gets, with its home folder ``home``."""
+    return {"PATH": "/usr/bin:/bin", "HOME": home, "TMPDIR": "/tmp" if home.startswith("/tmp/") else home,
+            "LANG": "C.UTF-8", "MPLBACKEND": "Agg", "PYTHONHASHSEED": "0", "PYTHONDONTWRITEBYTECODE": "1",
+            "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}

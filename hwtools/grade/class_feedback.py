@@ -1,0 +1,121 @@
+"""Markdown feedback for students (a class's files, Gradescope's tests): status, points per TODO,
+what was checked, the first failing visible check with its input, expected and actual value;
+never a hidden input. Everything a submission may have shaped is escaped for Markdown and shown
+without control characters."""
+
+from __future__ import annotations
+
+import re
+
+from hwtools.grade import blocks
+from hwtools.grade.feedback import failure_words
+from hwtools.grade.safe_text import printable
+from hwtools.grade.submissions import KIT_DEPTH, MAX_PY_BYTES, size_text
+
+STOPPED_NOTE = "the run of your code stopped"  # how the grader's note on a stopped run begins
+
+
+def _points(value):
+    return f"{value:g}"
+
+
+def _fence(text):
+    """``text`` in a fenced code block whose fence no backtick run inside it can close."""
+    text = printable(text, keep_newlines=True)
+    longest = max((len(run) for run in re.findall(r"`+", text)), default=0)
+    fence = "`" * max(3, longest + 1)
+    return f"{fence}text\n{text.rstrip()}\n{fence}"
+
+
+def md_escape(text):
+    """Text a student's files may have shaped (notes, file names, statuses), safe inside a Markdown
+    line: no emphasis, links, code, table cells or HTML."""
+    text = printable(str(text).replace("\n", " ")).replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+    return re.sub(r"([\\`*_\[\]|~])", r"\\\1", text)
+
+
+def todo_markdown(entry, visible_only=False):
+    """One TODO of a result as Markdown: the points, what was checked, the first failing visible
+    check with its input, expected and actual value, the notes. ``visible_only``: the checks'
+    outcomes on the visible inputs only (a check that fails only on hidden inputs reads as passing)
+    and no points, for feedback given before the grades are published."""
+    lines = []
+    if not visible_only and entry["auto_possible"]:
+        lines.append(f"**{_points(entry['auto_earned'])} of {_points(entry['auto_possible'])} automatic point(s)** "
+                     f"({entry['status']})")
+    elif not entry["auto_possible"]:
+        lines.append("Graded by hand" + ("; the check below is for the grader, it gives no points." if entry["checks"]
+                                         else "."))
+    if lines and entry["checks"]:
+        lines.append("")
+    for check in entry["checks"]:
+        if visible_only:
+            passed = check["passed"] or check["failed_on"] == "hidden"
+            where = f"{check['visible_inputs']} visible input(s)"
+            lines.append(f"- {'pass' if passed else '**FAIL**'}: {check['check']} ({where})")
+            continue
+        inputs = f"{check['visible_inputs']} visible"
+        inputs += f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else ""
+        where = f"; failed on a {check['failed_on']} input" if check["failed_on"] else ""
+        lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}, {_points(check['points'])} pt: "
+                     f"{check['check']} ({inputs} input(s){where})")
+    failure = entry["first_failure"]
+    if failure and (not failure["hidden"] or not visible_only):
+        headline, fields = failure_words(failure)  # the same words as every other report
+        lines += ["", headline]
+        for name, text in fields:
+            lines += ["", f"{name}:", "", _fence(text)]
+    notes = entry["notes"]
+    if visible_only and not any(check["failed_on"] == "visible" for check in entry["checks"]):
+        notes = [note for note in notes if not note.startswith(STOPPED_NOTE)]  # it may have stopped on a hidden input
+    if notes:
+        lines.append("")
+        lines += [f"- note: {md_escape(note)}" for note in notes]
+    if entry["manual_possible"] and not visible_only:
+        lines.append("")
+        lines.append(f"By hand ({_points(entry['manual_possible'])} pt): {md_escape(entry['manual'])}")
+    return "\n".join(lines)
+
+
+def summary_table(result):
+    lines = ["| TODO | what | automatic | by hand | status |", "|---|---|---|---|---|"]
+    for entry in result["todos"]:
+        auto = "–"
+        if entry["auto_possible"]:
+            auto = f"{_points(entry['auto_earned'])} / {_points(entry['auto_possible'])}"
+        manual = _points(entry["manual_possible"]) if entry["manual_possible"] else "–"
+        lines.append(f"| {entry['id']} | {entry['title']} | {auto} | {manual} | {entry['status']} |")
+    total = result["total"]
+    lines.append(f"| **total** | | **{_points(total['auto_earned'])} / {_points(total['auto_possible'])}** | "
+                 f"{_points(total['manual_possible'])} | |")
+    return "\n".join(lines)
+
+
+UNGRADED_HELP = (f"What the grader reads: your `{blocks.PACKAGE}/` folder (with the code between the "
+                 "`### BEGIN TODO` and `### END TODO` markers), in a folder or a .zip, at the top or up to "
+                 f"{KIT_DEPTH} folders down; plain files only (no links), each Python file under "
+                 f"{size_text(MAX_PY_BYTES)}.")
+
+
+def feedback_markdown(student_result):
+    """The feedback file of one student (Markdown): status, points per TODO, what was checked and
+    the first failing visible check per TODO; never a hidden input."""
+    lines = [f"# Homework 1, automatic grading: {md_escape(student_result.student)}", ""]
+    lines.append(f"Status: **{md_escape(student_result.status)}**")
+    result = student_result.result
+    if result is None:
+        lines += ["", "Automatic points: **0**. Nothing of this submission was run.", "", UNGRADED_HELP]
+        return "\n".join(lines) + "\n"
+    total = result["total"]
+    lines += ["", f"Automatic points: **{_points(total['auto_earned'])} of {_points(total['auto_possible'])}**; "
+                  f"{_points(total['manual_possible'])} more points are graded by hand."]
+    lines += ["", "Each TODO is checked with your code for that TODO and the reference solution for every other "
+                  "one, so a mistake costs points only where it was made."]
+    for note in student_result.notes + result["notes"]:
+        lines += ["", f"- note: {md_escape(note)}"]
+    lines += ["", summary_table(result)]
+    for entry in result["todos"]:
+        if not entry["checks"] and not entry["notes"] and not entry["manual_possible"]:
+            continue
+        lines += ["", f"## {entry['id']} {entry['title']}", "", todo_markdown(entry)]
+    return "\n".join(lines) + "\n"

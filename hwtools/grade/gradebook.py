@@ -1,0 +1,95 @@
+"""The class's gradebook: one CSV row per student (``StudentResult``): status, automatic points per
+TODO, their total, empty columns for the points graded by hand (maxima in the headers), notes. No
+time stamps: the same results give the same bytes. Every text cell is shown as text (no formula
+from a student's file name) and without control characters."""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+
+from hwtools.grade.safe_text import printable
+from hwtools.todos import AUTO_POINTS, TODOS
+
+GRADED, NOT_ISOLATED = "graded", "not isolated"
+
+
+@dataclass
+class StudentResult:
+    """One student's row: ``status`` (graded, not isolated, timed out: ..., empty, unreadable: ...,
+    rejected: ...), ``result`` (the grader's dict, or None when nothing was graded), ``notes``
+    (what the reader did), ``reused`` (taken from the saved state)."""
+
+    student: str
+    status: str
+    result: dict | None = None
+    notes: list = field(default_factory=list)
+    reused: bool = False
+    seconds: float = 0.0
+
+    @property
+    def auto_total(self):
+        return self.result["total"]["auto_earned"] if self.result else 0.0
+
+    def auto_points(self, todo):
+        if not self.result:
+            return 0.0
+        return next((entry["auto_earned"] for entry in self.result["todos"] if entry["id"] == todo), 0.0)
+
+
+def status_of(result):
+    """The gradebook's status of a graded result."""
+    timed_out = [entry["id"] for entry in result["todos"] if entry["status"] == "time limit"]
+    parts = [f"timed out: {', '.join(timed_out)}"] if timed_out else []
+    if not result["isolated"]:
+        parts.append(NOT_ISOLATED)
+    return "; ".join(parts) or GRADED
+
+
+def _points(value):
+    return f"{value:g}"
+
+
+def gradebook_header():
+    """The gradebook's columns: student, status, one per TODO's automatic points, the automatic
+    total, one (empty) per TODO's points graded by hand, notes; maxima in the headers."""
+    header = ["student", "status"]
+    header += [f"{todo.id} {todo.title} (/{_points(todo.auto)})" for todo in TODOS if todo.auto]
+    header.append(f"auto total (/{_points(AUTO_POINTS)})")
+    header += [f"{todo.id} by hand: {todo.manual_what if todo.auto else todo.title} (/{_points(todo.manual)})"
+               for todo in TODOS if todo.manual]
+    header.append("notes")
+    return header
+
+
+def _cell(text):
+    """A text cell a spreadsheet shows as text (no formula from a student's file name)."""
+    text = printable(text)
+    return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
+
+
+def row_notes(student_result):
+    notes = []
+    if student_result.result:
+        notes += [f"{entry['id']} {entry['status']}" for entry in student_result.result["todos"]
+                  if entry["status"] in ("time limit", "crashed", "not graded")]
+    return "; ".join(notes)
+
+
+def gradebook_row(student_result):
+    row = [_cell(student_result.student), _cell(student_result.status)]
+    row += [_points(student_result.auto_points(todo.id)) for todo in TODOS if todo.auto]
+    row.append(_points(student_result.auto_total))
+    row += ["" for todo in TODOS if todo.manual]
+    row.append(_cell(row_notes(student_result)))
+    return row
+
+
+def gradebook_text(student_results):
+    stream = io.StringIO()
+    writer = csv.writer(stream, lineterminator="\n")
+    writer.writerow(gradebook_header())
+    for student_result in sorted(student_results, key=lambda item: item.student):
+        writer.writerow(gradebook_row(student_result))
+    return stream.getvalue()

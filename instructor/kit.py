@@ -1,0 +1,137 @@
+"""The instructor's kit as the release tools see it: which files it has, which of them stay with the
+instructor, and the solution blocks in them (read by ``hwtools.markers`` with the instructor's rules).
+
+Both editions start here: the student edition (``instructor/release.py``) and the Gradescope
+bundle (``instructor/gradescope.py``).
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path, PurePosixPath
+
+from hwtools import markers
+from hwtools.todos import TODO_BY_ID
+
+# Left out of the student edition: path prefixes relative to the kit (folders end with "/").
+INSTRUCTOR_ONLY = (
+    "instructor/",  # the release tool, hidden checks, wrong solutions: one folder
+    "tests/test_release.py",
+    "tests/test_markers.py",  # its copies of the kit are graded against the reference
+    "tests/test_grading.py",
+    "tests/test_checks.py",  # grades the wrong and natural solutions against the reference
+    "tests/test_classroom.py",  # classes built from the wrong solutions and cheats, graded against the reference
+    "tests/test_gradescope.py",
+    "tests/test_student_edition.py",
+    "tests/hidden/",
+    "tests/wrong_solutions/",
+    "tests/natural_solutions/",  # working solutions of every TODO
+    "tests/cheats/",
+    # Its per-sample reference loop spells out the gradient of 2.1.1 and the labels of 2.3.1.
+    "benchmarks/bench_logreg.py",
+    "benchmarks/requirements-bench.txt",
+    "benchmarks/bench_grading.py",  # it grades against the reference solution
+    "benchmarks/bench_classroom.py",
+)
+
+# Only the homework holds solution blocks; tooling elsewhere (the grader) may talk about markers freely.
+HOMEWORK_FOLDERS = ("hwlib/", "notebooks/")
+
+# Never part of a kit, whatever git says: at any depth, and (build output) at the top.
+SKIPPED_PARTS = {".git", ".venv", "venv", "__pycache__", ".pytest_cache", ".ipynb_checkpoints"}
+SKIPPED_TOP = {"build", "dist", "test-artifacts"}
+SKIPPED_SUFFIXES = (".pyc", ".egg-info")
+
+SOLUTION = ("SOLUTION",)  # the instructor's kit fences solutions with SOLUTION markers only
+
+
+class ReleaseError(Exception):
+    """A problem in the source kit, located as ``file:line: message``."""
+
+
+# --------------------------------------------------------------------------------------------
+# Files
+# --------------------------------------------------------------------------------------------
+
+
+def kit_files(source):
+    """The kit's files, as sorted POSIX paths relative to ``source``."""
+    source = Path(source)
+    names = None
+    if (source / ".git").exists() and shutil.which("git"):
+        result = subprocess.run(
+            ["git", "-C", str(source), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+            capture_output=True, check=False,
+        )
+        if result.returncode == 0:
+            names = [name for name in result.stdout.decode("utf-8").split("\0") if name]
+    if names is None:
+        names = [path.relative_to(source).as_posix() for path in source.rglob("*") if path.is_file() or path.is_symlink()]
+    return sorted(name for name in set(names) if _is_kit_file(source, name))
+
+
+def _is_kit_file(source, name):
+    parts = PurePosixPath(name).parts
+    if parts[0] in SKIPPED_TOP or any(part in SKIPPED_PARTS or part.endswith(SKIPPED_SUFFIXES) for part in parts):
+        return False
+    if parts[0] == "data" and (name.endswith(".npz") or (len(parts) > 1 and parts[1] == "audio")):
+        return False  # the course's data is never copied
+    path = source / name
+    return path.is_file() and not path.is_symlink()
+
+
+def is_instructor_only(name):
+    return any(name == prefix or (prefix.endswith("/") and name.startswith(prefix)) for prefix in INSTRUCTOR_ONLY)
+
+
+def read_text(data, name):
+    """The text of a kit file's bytes with ``\\n`` line ends and no BOM, whatever the checkout or the
+    editor wrote (Git for Windows writes ``\\r\\n``): Python files as Python reads them
+    (``markers.decode_python``; the kit's are UTF-8), any other file as UTF-8. None for a file that
+    is not text (NUL bytes, not UTF-8): it is copied as it is."""
+    if name.endswith(".py"):
+        try:
+            encoding = markers.python_encoding(data, name)
+            text = markers.decode_python(data, name)
+        except markers.MarkerError as error:
+            raise ReleaseError(str(error)) from None
+        if encoding not in ("utf-8", "utf-8-sig"):
+            raise ReleaseError(f"{name}: declares the {encoding} encoding; the kit's Python files are UTF-8 "
+                               "(the student edition writes them so)")
+        return text
+    if b"\0" in data:
+        return None
+    try:
+        return markers.normalise_newlines(data.decode("utf-8").removeprefix("\ufeff"))
+    except UnicodeDecodeError:
+        return None
+
+
+# --------------------------------------------------------------------------------------------
+# Solution blocks
+# --------------------------------------------------------------------------------------------
+
+
+def find_blocks(lines, where, style="code"):
+    """The solution blocks of ``lines`` (strings without line ends), by the instructor's rules:
+    SOLUTION markers with one of the handout's ids, nothing that looks like a marker and is not one,
+    each END indented like its BEGIN. ``where(index)`` names line ``index`` in errors; ``style`` is
+    "code" (``### BEGIN SOLUTION id``) or "markdown" (``<!-- BEGIN SOLUTION id -->``)."""
+    try:
+        return markers.find_blocks(lines, where, style, SOLUTION, known=TODO_BY_ID, strict=True)
+    except markers.MarkerError as error:
+        raise ReleaseError(str(error)) from None
+
+
+def file_blocks(path, name=None):
+    """(block, the lines it indexes into, style) for every solution block of one kit file: a Python
+    file, or the code and Markdown cells of a notebook; any other file has none. ``name`` (default:
+    ``path``) locates errors."""
+    path = Path(path)
+    if path.suffix not in (".py", ".ipynb"):
+        return []
+    try:
+        return markers.file_blocks(name or str(path), path.read_bytes(), SOLUTION, known=TODO_BY_ID, strict=True)
+    except markers.MarkerError as error:
+        raise ReleaseError(str(error)) from None

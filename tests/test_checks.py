@@ -1,0 +1,403 @@
+"""The checks of issue 15 (3-8): shapes as the handout states them, checks that see each mistake,
+tolerances that fit the computation, feedback that shows the difference, the same verdicts in the
+student's preview and the instructor's grade.
+
+* The words of a difference, tested on the judges directly (no sandbox): the index, digits enough
+  to tell expected and actual apart, the relative difference, the tolerance; the same words in
+  the text report, the class's Markdown feedback and Gradescope's.
+* The tolerances on the numbers that correct and wrong formulas give (no sandbox).
+* Every natural solution (``tests/natural_solutions/``, CRLF copies saved as whole CRLF kits)
+  earns every point; every wrong one (``instructor/wrong_solutions/``) keeps at most 30% of its
+  TODO and nothing outside it; the cases the handout leaves open get the README's verdict.
+* Preview = grade: the student edition's ``python -m hwtools.grade`` (answer key) and the
+  instructor's grade give every visible check the same verdict, and the same words for a first
+  failure on a visible input.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hwtools.grade import TODO_BY_ID, Grader, blocks, checks
+from hwtools.grade.classroom import todo_markdown
+from hwtools.grade.feedback import failure_words, render
+from test_grading import full_points, parse_wrong_solution, points
+
+KIT = Path(__file__).resolve().parents[1]
+NATURAL = KIT / "tests" / "natural_solutions"
+WRONG = KIT / "instructor" / "wrong_solutions"
+TIME_LIMIT = 60.0  # per TODO's run: the preview runs the student's own code for the other TODOs too
+MOST_KEPT = 0.3  # what a wrong formula may keep of its TODO
+
+pytestmark = pytest.mark.timeout(1800)
+
+
+def behaviour(behaviour_id):
+    return next(b for b in checks.BEHAVIOURS if b.id == behaviour_id)
+
+
+def ok(**values):
+    return {"status": "ok", "error": "", "warnings": [], "values": {k: np.asarray(v) for k, v in values.items()}}
+
+
+def judged(behaviour_id, args, actual, expected):
+    """The verdict of ``behaviour_id``'s judge on one answer, without a sandbox."""
+    b = behaviour(behaviour_id)
+    name = {"2.2.1": "values", "1.2.1": "gradient", "2.2.2": "probabilities", "2.3.1": "weights",
+            "2.2.3": "weights", "1.1.1": "actions", "2.1.1": "gradient"}[b.todo]
+    return b.judge(args, ok(**{name: actual}), {name: np.asarray(expected)}, [])
+
+
+def reference_sigmoid(z):
+    decay = np.exp(-np.abs(z))
+    return np.where(z >= 0, 1.0 / (1.0 + decay), decay / (1.0 + decay))
+
+
+# --------------------------------------------------------------------------------------------
+# The words of a difference (no sandbox)
+# --------------------------------------------------------------------------------------------
+
+
+def test_a_tiny_value_is_shown_as_itself_and_its_difference_relative():
+    z = np.array([0.0, 1.0, -3.0, 10.0, 5.0, -24.4])
+    expected = reference_sigmoid(z)
+    actual = expected.copy()
+    actual[5] = 0.0  # sigma(-24.4) = 2.5e-11, "rounded" to 0
+    verdict = judged("2.2.1/precision", {"z": z}, actual, expected)
+    assert not verdict.passed
+    assert "2.53055e-11" in verdict.expected and "2.53055e-11" in checks.show(expected[5])
+    assert verdict.difference.startswith("first difference at index [5] (z[5] = -24.4): expected 2.53055e-11, actual 0")
+    assert "relative difference 1;" in verdict.difference and "1 of 6 entries differ" in verdict.difference
+    assert verdict.tolerance.startswith("|actual - expected| <= 1e-12 * |expected| + 1e-15;")
+    # the values check lets |z| > 20 be 1e-8 off (a sigmoid clipped at +-20 is a shortcut), and says so
+    assert judged("2.2.1/values", {"z": z}, actual, expected).passed
+    assert "+ 1e-08 in place of + 1e-15 where |z| > 20" in checks.SIGMOID_TOLERANCE.words()
+
+
+def test_values_off_by_2e_9_are_told_apart_with_enough_digits():
+    z = np.array([-0.3, 0.4, 2.0])
+    expected = reference_sigmoid(z)
+    actual = expected + np.array([0.0, 2e-9, 0.0])
+    verdict = judged("2.2.1/precision", {"z": z}, actual, expected)
+    assert not verdict.passed
+    want, got = checks.tell_apart(expected[1], actual[1])
+    assert want != got and len(want) > 8, (want, got)  # six digits would print the two alike
+    assert f"expected {want}, actual {got}" in verdict.difference
+    assert "index [1]" in verdict.difference and "relative difference 3.34e-09" in verdict.difference
+    assert checks.tell_apart(0.123456789, 0.123456791) == ("0.123456789", "0.123456791")
+    assert checks.tell_apart(1.0, 1.0 + 2.0**-52) == ("1", "1.0000000000000002")
+
+
+def test_the_difference_names_the_entry_and_its_input():
+    args = {"params": np.array([[1.0, 2.0, 0.0, 0.0], [3.0, -1.0, 1.0, 2.0]]),
+            "obs": np.array([[1.0, -1.0, 0.0, 0.0], [1.0, 3.0, 0.0, 0.0]])}
+    verdict = judged("1.1.1/equation-1", args, [1, 1], [1, 0])
+    assert verdict.difference == ("first difference at index [1] (row 1: params [3, -1, 1, 2], obs [1, 3, 0, 0], "
+                                  "params . obs = 0): expected 0, actual 1; 1 of 2 entries differ")
+    assert verdict.tolerance == "exactly equal"
+    steps = {"n_features": 2, "steps": 2}
+    verdict = judged("2.2.3/two-steps", steps, [[0.1, 0.2, 0.3], [0.4, 0.5, 0.6]], [[0.1, 0.2, 0.3], [0.4, 0.5, 0.7]])
+    assert "index [1, 2] (weight 2 (the bias) after step 2): expected 0.7, actual 0.6" in verdict.difference
+    assert "relative difference 0.143" in verdict.difference
+    fd = {"x": np.array([0.5, -1.0]), "h": np.array([0.1, 0.2])}
+    verdict = judged("1.2.1/equation-3", fd, [1.0, 2.5], [1.0, 2.0])
+    assert "index [1] (coordinate 1: x[1] = -1, h[1] = 0.2): expected 2, actual 2.5" in verdict.difference
+
+
+def test_nan_and_a_zero_expected_value_are_said_plainly():
+    verdict = judged("2.2.1/values", {"z": np.array([800.0, -800.0])}, [np.nan, 0.0], [1.0, 0.0])
+    assert "index [0] (z[0] = 800): expected 1, actual nan" in verdict.difference
+    verdict = judged("2.1.1/gradient", {"weights": np.zeros(2)}, [0.5, 1e-3], [0.5, 0.0])
+    assert "relative difference undefined (the expected value is 0)" in verdict.difference
+
+
+def test_an_answer_is_its_numbers_in_a_row_where_the_handout_says_so():
+    # 1.2.1: "the same dimension as x": a list, an array, (1,) for a single number
+    single = {"x": 0.3, "h": 0.1, "x_scalar": True}
+    assert judged("1.2.1/one-step", single, np.array([2.0]), np.array(2.0)).passed
+    assert judged("1.2.1/one-step", single, 2.0, np.array(2.0)).passed
+    row = {"x": np.zeros(3), "h": np.ones(3)}
+    assert judged("1.2.1/equation-3", row, [1.0, 2.0, 3.0], np.array([1.0, 2.0, 3.0])).passed
+    column = judged("1.2.1/equation-3", row, np.array([[1.0], [2.0], [3.0]]), np.array([1.0, 2.0, 3.0]))
+    assert not column.passed and column.difference == "the answer is an array of shape (3, 1), where shape (3,) is expected"
+    short = judged("1.2.1/equation-3", row, [1.0, 2.0], np.array([1.0, 2.0, 3.0]))
+    assert not short.passed and "2 number(s), where 3 are expected" in short.difference
+    # the sigmoid keeps the shape of z: 12 numbers in a row are not a 3 x 4 array
+    z = np.zeros((3, 4))
+    assert not judged("2.2.1/any-shape", {"z": z}, np.full(12, 0.5), np.full((3, 4), 0.5)).passed
+    assert judged("2.2.1/any-shape", {"z": np.asarray(0.0)}, [0.5], np.asarray(0.5)).passed
+
+
+def test_every_failure_has_one_wording_in_every_report():
+    failure = {"check": "sigma(z) ...", "hidden": False, "input": "z=[1]", "expected": "[0.731059]",
+               "actual": "[0.5]", "difference": "first difference at index [0] (z[0] = 1): expected 0.731059, actual 0.5",
+               "tolerance": "|actual - expected| <= 1e-12 * |expected| + 1e-15"}
+    headline, fields = failure_words(failure)
+    assert [name for name, _ in fields] == ["input", "expected", "actual", "difference", "tolerance"]
+    entry = {"id": "2.2.1", "title": "sigmoid", "auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0,
+             "manual": "", "status": "graded", "notes": [], "first_failure": failure,
+             "checks": [{"check": "sigma(z) ...", "points": 2, "passed": False, "failed_on": "visible",
+                         "visible_inputs": 1, "hidden_inputs": 1}]}
+    result = {"isolated": True, "isolation": "bwrap", "submission": "s", "reference": "r", "one_mistake_one_place": True,
+              "todos": [entry], "notes": [], "total": {"auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0}}
+    def plain(text):
+        return " ".join(text.split())
+
+    reports = {"text report (preview and grade)": render(result), "class feedback": todo_markdown(entry),
+               "Gradescope's visible test": todo_markdown(entry, visible_only=True)}
+    for name, report in reports.items():
+        assert plain(headline) in plain(report), name
+        for label, words in fields:
+            assert plain(words) in plain(report) and f"{label}:" in report, (name, label)
+    hidden = {"check": "sigma(z) ...", "hidden": True, "input": "a hidden input (not shown)"}
+    headline, fields = failure_words(hidden)
+    assert fields == [] and "on a hidden input" in headline
+    entry["first_failure"] = hidden
+    assert plain(headline) in plain(render(result)) and plain(headline) in plain(todo_markdown(entry))
+    assert "hidden input" not in todo_markdown(entry, visible_only=True)
+
+
+# --------------------------------------------------------------------------------------------
+# Tolerances (no sandbox): what correct formulas give passes, what wrong ones give does not
+# --------------------------------------------------------------------------------------------
+
+
+def sigmoid_forms():
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        return {
+            "naive": lambda z: 1 / (1 + np.exp(-z)),
+            "tanh": lambda z: 0.5 * (1 + np.tanh(z / 2)),
+            "clip at 500": lambda z: 1 / (1 + np.exp(-np.clip(z, -500, 500))),
+            "log-sum-exp": lambda z: np.exp(-np.logaddexp(0, -z)),
+        }
+
+
+@pytest.mark.parametrize("form", list(sigmoid_forms()))
+def test_correct_sigmoids_pass_every_tolerance(form):
+    z = np.concatenate([np.linspace(-1000, 1000, 20001), np.linspace(-50, 50, 20001), [-24.4, 24.4, 0.0]])
+    with np.errstate(over="ignore", invalid="ignore", under="ignore"):
+        actual = sigmoid_forms()[form](z)
+    for key in ("values", "any-shape", "precision"):
+        assert judged(f"2.2.1/{key}", {"z": z}, actual, reference_sigmoid(z)).passed, (form, key)
+
+
+def test_sigmoid_tolerances_see_clipping_and_nan():
+    z = np.concatenate([np.linspace(-1000, 1000, 2001), np.linspace(-50, 50, 2001)])
+    expected = reference_sigmoid(z)
+    with np.errstate(over="ignore", invalid="ignore"):
+        clip20 = 1 / (1 + np.exp(-np.clip(z, -20, 20)))
+        nan = np.exp(z) / (1 + np.exp(z))
+    assert judged("2.2.1/values", {"z": z}, clip20, expected).passed  # within 2.1e-9: a shortcut, not a wrong formula
+    assert not judged("2.2.1/precision", {"z": z}, clip20, expected).passed  # not float64 precision
+    assert not judged("2.2.1/values", {"z": z}, nan, expected).passed
+    near = np.linspace(-20, 20, 401)
+    assert not judged("2.2.1/values", {"z": near}, reference_sigmoid(near) + 2e-15, reference_sigmoid(near)).passed
+
+
+def test_finite_difference_tolerance_takes_another_order_but_no_other_formula():
+    rng = np.random.default_rng(1)
+    spec = checks._coupled(rng, 5)
+    from hwtools.grade.worker import known_function
+
+    f, x, h = known_function(spec), rng.uniform(-1.5, 1.5, 5), np.array([0.01, 0.05, 0.3, 0.8, 0.2])
+    eye = np.eye(5)
+    reference = np.array([(f(x + h[i] * eye[i]) - f(x - h[i] * eye[i])) / (2.0 * h[i]) for i in range(5)])
+    reordered = np.array([f(x + h[i] * eye[i]) / (2 * h[i]) - f(x - h[i] * eye[i]) / (2 * h[i]) for i in range(5)])
+    halved = np.array([0.5 * (f(x + h[i] * eye[i]) - f(x - h[i] * eye[i])) / h[i] for i in range(5)])
+    half_steps = np.array([(f(x + h[i] / 2 * eye[i]) - f(x - h[i] / 2 * eye[i])) / h[i] for i in range(5)])
+    args = {"x": x, "h": h}
+    assert judged("1.2.1/equation-3", args, reordered, reference).passed
+    assert judged("1.2.1/equation-3", args, halved, reference).passed
+    assert not judged("1.2.1/equation-3", args, half_steps, reference).passed
+
+
+def test_no_hidden_input_repeats_a_visible_one():
+    """A hidden input equal to a visible one would be shown in feedback, and answered by the key."""
+    from hwtools.grade.grader import load_hidden_checks
+    from hwtools.grade.worker import fingerprint
+
+    hidden = load_hidden_checks(KIT)
+    shown = {checks.show(value) for b in checks.BEHAVIOURS for args in b.visible_cases() for value in args.values()}
+    for b in checks.BEHAVIOURS:
+        visible = {fingerprint({"args": args}) for args in b.visible_cases()}
+        for args in hidden.hidden_cases(b):
+            assert fingerprint({"args": args}) not in visible, (b.id, args)
+            for name, value in args.items():  # nor does it read as one where feedback shows a visible input
+                if isinstance(value, np.ndarray) and np.unique(value).size >= 3:
+                    assert checks.show(value) not in shown, (b.id, name, checks.show(value))
+
+
+# --------------------------------------------------------------------------------------------
+# Grading the solutions (sandbox)
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def grader():
+    return Grader(KIT, time_limit=TIME_LIMIT, jobs=2)
+
+
+@pytest.fixture(scope="module")
+def layout():
+    return blocks.load_layout(KIT)
+
+
+def is_crlf(path):
+    return b"\r\n" in path.read_bytes()
+
+
+def write_kit(layout, folder, bodies, crlf=False):
+    """A student's kit with ``bodies`` ({todo: code}) in their blocks and the reference elsewhere;
+    with ``crlf`` every file saved with Windows line endings, as Git for Windows checks it out."""
+    blocks.write_submission(layout, folder, bodies, others="reference")
+    if crlf:
+        for path in Path(folder).rglob("*.py"):
+            path.write_bytes(path.read_bytes().replace(b"\r\n", b"\n").replace(b"\n", b"\r\n"))
+    return Path(folder)
+
+
+def natural_solutions():
+    return [path for path in sorted(NATURAL.glob("*.py"))
+            if TODO_BY_ID[path.name.split("_")[0]].auto or path.name.startswith("2.1.1_")]
+
+
+def natural_body(path):
+    return path.read_bytes().decode("utf-8").replace("\r\n", "\n")
+
+
+def test_crlf_copies_are_byte_for_byte_crlf_and_cover_every_graded_todo():
+    copies = [path for path in natural_solutions() if path.stem.endswith("_crlf")]
+    assert {path.name.split("_")[0] for path in copies} == set(checks.GRADED_TODOS)
+    for path in copies:
+        data = path.read_bytes()
+        assert data.count(b"\r\n") == data.count(b"\n") > 0, path.name
+        assert (NATURAL / (path.stem[: -len("_crlf")] + ".py")).read_bytes() == data.replace(b"\r\n", b"\n")
+
+
+@pytest.mark.parametrize("path", [path for path in natural_solutions() if is_crlf(path)], ids=lambda path: path.stem)
+def test_natural_solution_saved_with_crlf_earns_every_point(grader, layout, tmp_path, path):
+    """(tests/test_grading.py grades every natural solution saved as the kit saves files.)"""
+    todo = path.name.split("_")[0]
+    kit = write_kit(layout, tmp_path / "kit", {todo: natural_body(path)}, crlf=is_crlf(path))
+    result = grader.grade(kit)
+    assert points(result) == full_points(), render(result)
+    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
+    assert all(check["passed"] for check in entry["checks"]), render(result)
+
+
+def test_the_whole_reference_kit_saved_with_crlf_earns_every_point(grader, layout, tmp_path):
+    result = grader.grade(write_kit(layout, tmp_path / "kit", {}, crlf=True))
+    assert points(result) == full_points(), render(result)
+
+
+WRONG_FILES = sorted(WRONG.glob("*.txt"))
+
+
+@pytest.mark.parametrize("path", WRONG_FILES, ids=lambda path: path.stem)
+def test_wrong_solution_keeps_at_most_30_percent_of_its_todo_and_costs_nothing_elsewhere(grader, layout, tmp_path,
+                                                                                         path):
+    todo, mistake, bodies = parse_wrong_solution(path)
+    result = grader.grade(write_kit(layout, tmp_path / "kit", {todo: bodies}))
+    earned = points(result)
+    assert earned[todo] <= MOST_KEPT * TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) keeps {earned[todo]}:\n" + \
+        render(result)
+    assert earned | {todo: TODO_BY_ID[todo].auto} == full_points(), render(result)
+
+
+# The cases the handout leaves open, with the verdict the README's grading table gives and why.
+VERDICTS = {
+    "a sigmoid clipped at +-20 (off by up to 2.1e-9)": (
+        "2.2.1", "values = 1.0 / (1.0 + np.exp(-np.clip(z, -20, 20)))", 1.5),
+    "a numpy bool as action (env.step refuses it)": ("1.1.1", "action = np.dot(self.params, obs) < 0", 1.5),
+    "a Python bool as action (env.step takes it)": ("1.1.1", "action = float(np.dot(self.params, obs)) < 0", 2),
+    "a float as action (env.step refuses it)": ("1.1.1", "action = float(np.dot(self.params, obs) < 0)", 1.5),
+    "the gradient as a column (N, 1): not the dimension of x": (
+        "1.2.1", "column = np.zeros((len(x), 1))\nfor i in range(len(x)):\n    e = np.zeros(len(x))\n    e[i] = h[i]\n"
+                 "    column[i, 0] = (f(x + e) - f(x - e)) / (2 * h[i])\nreturn column", 0),
+    "a sigmoid that breaks on a single number (iterates over z)": (
+        "2.2.1", "values = np.array([1 / (1 + np.exp(-v)) for v in z])", 1.7),
+}
+
+
+@pytest.mark.parametrize("case", list(VERDICTS))
+def test_open_cases_get_the_readme_verdict(grader, layout, tmp_path, case):
+    todo, body, kept = VERDICTS[case]
+    result = grader.grade(write_kit(layout, tmp_path / "kit", {todo: body}))
+    assert points(result) == full_points() | {todo: kept}, render(result)
+
+
+# --------------------------------------------------------------------------------------------
+# Preview = grade on the visible part
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def student_edition(tmp_path_factory):
+    """The student edition as the instructor builds it (``python -m instructor.release student OUT``), with
+    its answer key, and the environment that runs its own ``hwtools``."""
+    out = tmp_path_factory.mktemp("edition") / "student"
+    built = subprocess.run([sys.executable, "-m", "instructor.release", "student", str(out)], cwd=KIT,
+                           capture_output=True, text=True, timeout=900)
+    assert built.returncode == 0, built.stdout + built.stderr
+    assert (out / "hwtools" / "grade" / "answer_key.json").is_file() and not (out / "instructor").exists()
+    env = {**os.environ, "PYTHONPATH": str(out), "MPLBACKEND": "Agg"}
+    where = subprocess.run([sys.executable, "-c", "import hwtools.grade; print(hwtools.grade.__file__)"], cwd=out,
+                           env=env, capture_output=True, text=True, timeout=60)
+    assert Path(where.stdout.strip()).resolve().is_relative_to(out.resolve()), where.stdout + where.stderr
+    return out, env
+
+
+def preview(student_edition, kit, todos, out):
+    edition, env = student_edition
+    command = [sys.executable, "-m", "hwtools.grade", str(kit), "--json", str(out), "--time-limit", str(TIME_LIMIT)]
+    for todo in todos:
+        command += ["--todo", todo]
+    run = subprocess.run(command, cwd=edition, env=env, capture_output=True, text=True, timeout=1200)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    return json.loads(Path(out).read_text(encoding="utf-8"))
+
+
+def visible_verdicts(result, todos):
+    """{(todo, check): passed on its visible inputs}."""
+    return {(entry["id"], check["check"]): check["passed"] or check["failed_on"] == "hidden"
+            for entry in result["todos"] if entry["id"] in todos for check in entry["checks"]}
+
+
+def assert_same_visible_verdicts(grade, shown, todos):
+    assert shown["one_mistake_one_place"] is False and grade["one_mistake_one_place"] is True
+    assert visible_verdicts(shown, todos) == visible_verdicts(grade, todos)
+    for todo in todos:
+        graded = next(entry for entry in grade["todos"] if entry["id"] == todo)["first_failure"]
+        previewed = next(entry for entry in shown["todos"] if entry["id"] == todo)["first_failure"]
+        if graded is not None and not graded["hidden"]:  # the same words for the same visible failure
+            assert previewed == graded, (todo, previewed, graded)
+
+
+@pytest.mark.parametrize("path", natural_solutions(), ids=lambda path: path.stem)
+def test_preview_gives_the_grade_of_natural_solutions_on_the_visible_checks(grader, layout, student_edition, tmp_path,
+                                                                         path):
+    """One solution at a time, the reference elsewhere: the preview runs the student's own code for
+    the other TODOs, so a correct 1.2.1 that returns a list fails the student's own 1.3.2 there
+    (params + learning_rate * list), where the grade runs 1.3.2 with the reference's 1.2.1."""
+    todo = path.name.split("_")[0]
+    kit = write_kit(layout, tmp_path / "kit", {todo: natural_body(path)}, crlf=is_crlf(path))
+    grade = grader.grade(kit, todos=[todo])
+    shown = preview(student_edition, kit, [todo], tmp_path / "preview.json")
+    assert_same_visible_verdicts(grade, shown, [todo])
+    assert all(visible_verdicts(shown, [todo]).values()), render(shown)
+
+
+@pytest.mark.parametrize("path", WRONG_FILES, ids=lambda path: path.stem)
+def test_preview_gives_the_grade_of_wrong_solutions_on_the_visible_checks(grader, layout, student_edition, tmp_path,
+                                                                       path):
+    todo, _, bodies = parse_wrong_solution(path)
+    kit = write_kit(layout, tmp_path / "kit", {todo: bodies})
+    grade = grader.grade(kit, todos=[todo])
+    assert_same_visible_verdicts(grade, preview(student_edition, kit, [todo], tmp_path / "preview.json"), [todo])
