@@ -101,13 +101,6 @@ def student_edition(tmp_path_factory):
     out = tmp_path_factory.mktemp("student") / "kit"
     subprocess.run([sys.executable, "-m", "instructor.release", "student", str(out), "--no-answer-key"],
                    cwd=KIT, check=True, capture_output=True)
-    for path in (out / "hwlib").rglob("*.py"):
-        text = path.read_text(encoding="utf-8")
-        # Until the release tool writes `raise TodoNotDone("x.y.z")` itself, put it where its stub says `pass`.
-        simulated = re.sub(r"(?m)^([ \t]*)### BEGIN TODO (\d\.\d\.\d)\n(\1# TODO .*\n)\1pass\n",
-                           lambda m: f'{m[1]}### BEGIN TODO {m[2]}\n{m[3]}{m[1]}raise TodoNotDone("{m[2]}")\n', text)
-        if simulated != text:
-            path.write_text(simulated, encoding="utf-8")
     return out
 
 
