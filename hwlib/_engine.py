@@ -69,48 +69,92 @@ def start_states(seeds):
     return np.array([_START_STATES[int(seed)] for seed in seeds]).reshape(len(seeds), NUM_OBSERVATIONS)
 
 
+def starts_of(seeds_or_states):
+    """The start states (float64 (K, 4)) of episodes named by a seed (int) or by a start state (its
+    float64 bytes: an unseeded episode of a kit run, see ``hwlib/_batch.py``)."""
+    if not any(isinstance(item, bytes) for item in seeds_or_states):
+        return start_states(np.fromiter(seeds_or_states, dtype=np.int64, count=len(seeds_or_states)))
+    from_seeds = iter(start_states(np.array([item for item in seeds_or_states if not isinstance(item, bytes)],
+                                            dtype=np.int64)))
+    return np.array([np.frombuffer(item, dtype=np.float64) if isinstance(item, bytes) else next(from_seeds)
+                     for item in seeds_or_states]).reshape(len(seeds_or_states), NUM_OBSERVATIONS)
+
+
 def batch_actions(params, observations):
     """The batch engine's own copy of equation (1) for K episodes at once: row k of ``params``
-    (K, 4) acts on row k of ``observations`` (K, 4). Returns K int64 actions."""
-    return (np.einsum("kj,kj->k", params, observations) < 0).astype(np.int64)
+    (K, 4) acts on row k of ``observations`` (K, 4, the float32 numbers ``env.step`` returns).
+    The score is summed left to right in float64, as ``play_batch`` does. Returns K int64 actions."""
+    o = np.asarray(observations, dtype=np.float32).astype(np.float64)
+    score = params[:, 0] * o[:, 0]
+    for j in range(1, NUM_OBSERVATIONS):
+        score += params[:, j] * o[:, j]
+    return (score < 0).astype(np.int64)
 
 
-def play_batch(params, seeds):
+def play_batch(params, seeds=None, starts=None):
     """Total reward of one episode of equation (1) per row of ``params`` (float64, (K, 4)) from
-    ``reset(seed=seeds[k])`` (int64, (K,)), all played at once. The caller has checked both.
+    ``reset(seed=seeds[k])`` (int64, (K,)), or from the start state ``starts[k]`` (float64 (K, 4)),
+    all played at once. The caller has checked them.
 
     The step is gymnasium's own vectorised CartPole step (``CartPoleVectorEnv.step``: the same
     equations, constants and order of operations, the constants read from gymnasium's
-    environment), without its per-step checks and auto-reset, on the episodes still running
-    only: the rewards are those of ``env.step``, bit for bit (``tests/test_cartpole.py`` compares
-    it with gymnasium's vector environment and with the one-by-one loop).
+    environment), without its per-step checks and auto-reset, and in place: the rewards are those
+    of ``env.step``, bit for bit (``tests/test_cartpole.py`` compares it with gymnasium's vector
+    environment and with the one-by-one loop). An episode that has ended is still stepped (its
+    reward is kept) until a quarter of those stepped have ended; then the rest go on alone.
     """
     c = _physics()
-    x, x_dot, theta, theta_dot = (row.copy() for row in start_states(seeds).T)
+    starts = start_states(seeds) if starts is None else starts
+    x, x_dot, theta, theta_dot = (np.array(row, dtype=np.float64) for row in starts.T)  # copies, stepped in place
+    p0, p1, p2, p3 = (np.ascontiguousarray(params[:, j]) for j in range(NUM_OBSERVATIONS))
     rewards = np.zeros(len(params))
-    rows, row_params, steps = np.arange(len(params)), params, 0
-    while rows.size:
-        observations = np.empty((rows.size, NUM_OBSERVATIONS), dtype=np.float32)  # what env.step returns
-        observations[:, 0], observations[:, 1], observations[:, 2], observations[:, 3] = x, x_dot, theta, theta_dot
-        force = np.where(batch_actions(row_params, observations) == 1, c.force_mag, -c.force_mag)
+    rows, going, num_going, steps = np.arange(len(params)), np.ones(len(params), dtype=bool), len(params), 0
+    while num_going:
+        # Equation (1) on what env.step returns (float32), as batch_actions computes it.
+        score = p0 * x.astype(np.float32)
+        score += p1 * x_dot.astype(np.float32)
+        score += p2 * theta.astype(np.float32)
+        score += p3 * theta_dot.astype(np.float32)
+        force = np.where(score < 0, c.force_mag, -c.force_mag)
         costheta, sintheta = np.cos(theta), np.sin(theta)
-        temp = (force + c.polemass_length * np.square(theta_dot) * sintheta) / c.total_mass
-        thetaacc = (c.gravity * sintheta - costheta * temp) / (
-            c.length * (4.0 / 3.0 - c.masspole * np.square(costheta) / c.total_mass))
-        xacc = temp - c.polemass_length * thetaacc * costheta / c.total_mass
-        x, x_dot = x + c.tau * x_dot, x_dot + c.tau * xacc
-        theta, theta_dot = theta + c.tau * theta_dot, theta_dot + c.tau * thetaacc
+        temp = np.square(theta_dot)  # temp = (force + polemass_length * theta_dot**2 * sintheta) / total_mass
+        temp *= c.polemass_length
+        temp *= sintheta
+        temp += force
+        temp /= c.total_mass
+        below = np.square(costheta)  # length * (4/3 - masspole * costheta**2 / total_mass)
+        below *= c.masspole
+        below /= c.total_mass
+        np.subtract(4.0 / 3.0, below, out=below)
+        below *= c.length
+        thetaacc = c.gravity * sintheta  # (gravity * sintheta - costheta * temp) / below
+        thetaacc -= costheta * temp
+        thetaacc /= below
+        xacc = c.polemass_length * thetaacc  # temp - polemass_length * thetaacc * costheta / total_mass
+        xacc *= costheta
+        xacc /= c.total_mass
+        np.subtract(temp, xacc, out=xacc)
+        x += c.tau * x_dot  # Euler: the positions move with the old velocities
+        xacc *= c.tau
+        x_dot += xacc
+        theta += c.tau * theta_dot
+        thetaacc *= c.tau
+        theta_dot += thetaacc
         steps += 1  # +1 reward for every step, the last one included
         if steps >= c.max_episode_steps:  # truncated
-            rewards[rows] = steps
+            rewards[rows[going]] = steps
             break
-        ended = (x < -c.x_threshold) | (x > c.x_threshold) | (theta < -c.theta_threshold_radians) | (
-            theta > c.theta_threshold_radians)
+        ended = np.abs(x) > c.x_threshold
+        ended |= np.abs(theta) > c.theta_threshold_radians
+        ended &= going
         if ended.any():
             rewards[rows[ended]] = steps
-            going = ~ended
-            rows, row_params = rows[going], row_params[going]
-            x, x_dot, theta, theta_dot = x[going], x_dot[going], theta[going], theta_dot[going]
+            going &= ~ended
+            num_going -= int(np.count_nonzero(ended))
+            if 4 * num_going < 3 * len(rows):
+                rows, x, x_dot, theta, theta_dot = rows[going], x[going], x_dot[going], theta[going], theta_dot[going]
+                p0, p1, p2, p3 = p0[going], p1[going], p2[going], p3[going]
+                going = np.ones(len(rows), dtype=bool)
     return rewards
 
 
@@ -219,3 +263,27 @@ def _agrees(policy, params, states):
 def _is_action(action):
     # Python ints (bools included) and numpy integers are what env.step accepts.
     return isinstance(action, (int, np.integer))
+
+
+def linear_params(policy, linear_class):
+    """The float64 parameters (4,) of a policy of ``linear_class`` and their bytes, or (None, None)
+    for any other callable (or parameters that are not 4 finite numbers)."""
+    if not isinstance(policy, linear_class):
+        return None, None
+    params = policy.params
+    if type(params) is not np.ndarray or params.dtype != np.float64 or params.shape != (NUM_OBSERVATIONS,):
+        try:  # the policy's params were replaced after it was made: read them as they are now
+            params = np.array(params, dtype=np.float64).reshape(NUM_OBSERVATIONS)
+        except (TypeError, ValueError):
+            return None, None
+    data = params.tobytes()
+    if data not in FINITE_PARAMS:
+        if not np.isfinite(params).all():
+            return None, None
+        if len(FINITE_PARAMS) > 500_000:
+            FINITE_PARAMS.clear()
+        FINITE_PARAMS.add(data)
+    return params, data
+
+
+FINITE_PARAMS = set()  # the bytes of parameter vectors known to be finite

@@ -98,9 +98,12 @@ def _check_episode_arguments(policy, seed):
     return None if seed is None else check_seed(seed, "seed")
 
 
-def _play(policy, seed, env):
+def _play(policy, seed, env, start=None):
     env = make_env() if env is None else env
     obs, _ = env.reset(seed=seed)
+    if start is not None:  # the kit's runs: an unseeded episode starts where its run's env put it
+        env.unwrapped.state = np.array(start, dtype=np.float64)
+        obs = np.array(start, dtype=np.float32)
     states, actions, total_reward = [obs], [], 0.0
     done = False
     while not done:
@@ -117,8 +120,9 @@ def run_policy(policy, seed=None, env=None):
     """Total reward of one episode of ``policy`` from ``reset(seed=seed)``: the handout's loop.
 
     ``seed=None`` starts from a random state. Inside the kit's training runs (``hwlib/training.py``)
-    that state comes from the run's own generator, so the run is reproducible, and the episode may
-    be played together with others (same reward); pass ``env`` to always play it here, in ``env``.
+    it is where the next ``reset()`` of the run's own environment (seeded once with the run's seed)
+    starts, so the run is reproducible, and the episode may be played together with others (same
+    reward); pass ``env`` to always play it here, in ``env``.
     """
     seed = _check_episode_arguments(policy, seed)
     route = _engine.current_route()

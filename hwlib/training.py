@@ -9,10 +9,10 @@ so the numbers are those your code gives one episode at a time (``batched=False`
 
 | what                    | how the kit plays it                                               |
 |-------------------------|--------------------------------------------------------------------|
-| ``eval_params`` calls   | each call runs twice: once to learn which episodes it asks for (any seeds: ``seed + k``, a generator, none), then for real, after they were played in one batch |
+| ``eval_params`` calls   | a call runs twice: once to learn which episodes it asks for (any seeds: ``seed + k``, a generator, none), then for real, after they were played in one batch; once a run's calls have shown that their seeds follow from their arguments, only the real pass runs |
 | ``scalar_finite_diff``  | the same, so the 8 evaluations of one gradient are played in one batch |
 | the sweep's runs        | side by side, one at a time in a fixed order; what they all wait for is played together |
-| episodes without a seed | start from a seed drawn from ``np.random.default_rng(seed)`` of their training run, so a run gives the same numbers every time, batched or not |
+| episodes without a seed | start where the next ``reset()`` of the run's own environment, seeded once with the run's seed, starts them, so a run gives the same numbers every time, batched or not |
 | a policy that is not equation (1) | played step by step with your ``__call__``: slow; if that would take more than ``max_minutes``, the kit says so, with its estimate, before it starts |
 """
 
@@ -131,15 +131,72 @@ def learning_rate_sweep(
     return SweepResult(rates, seeds, rewards, deadline)
 
 
-def _run(tasks, generator_seeds, iterations, rollouts, batched, title, describe, max_minutes):
+class TooSlow(RuntimeError):
+    """The work would take much longer than ``max_minutes``; the two lines say how long and why."""
+
+    def __init__(self, first, second):
+        super().__init__(f"{first}\n{second}")
+        self.first, self.second = first, second
+
+    def _render_traceback_(self):
+        return [f"\x1b[1;31m{self.first}\x1b[0m", self.second]
+
+
+def _run(tasks, env_seeds, iterations, rollouts, batched, title, describe, max_minutes):
     max_seconds = None if max_minutes is None else 60.0 * float(max_minutes)
     if batched and len(tasks) > 1 and max_seconds is not None and iterations is not None and rollouts is not None:
         # Only many runs can take hours; one run played step by step takes seconds to minutes.
         _refuse_hours_of_step_by_step(len(tasks), iterations, rollouts, describe, max_seconds)
     with Progress(title, 1000, None) as bar:
-        session = _batch.Session(batched, iterations, bar if title else None, max_seconds, describe)
+        watch = _Watch(iterations, bar if title else None, max_seconds, describe)
+        session = _batch.Session(batched, on_round=watch)
         with session.replaying(policy_search, ("eval_params", "scalar_finite_diff"), counted="eval_params"):
-            return session.run(tasks, generator_seeds)
+            return session.run(tasks, env_seeds)
+
+
+class _Watch:
+    """After every batch: the progress bar, and the time limit (``TooSlow`` once the projected
+    time exceeds ``max_seconds``). Progress counts evaluations: 1 + 9 per iteration for each run."""
+
+    def __init__(self, iterations, progress, max_seconds, describe):
+        self.iterations, self.progress, self.max_seconds, self.describe = iterations, progress, max_seconds, describe
+        self.expected = None if iterations is None else 1 + _batch.EVALUATIONS_PER_ITERATION * iterations
+
+    def __call__(self, session):
+        fraction = self.fraction_done(session)
+        if self.progress is not None:
+            self.progress.set(round(fraction * self.progress.total), self.detail(session))
+        elapsed = time.perf_counter() - session.started
+        if self.max_seconds is not None and elapsed > 3.0 and fraction > 0.01 and elapsed / fraction > self.max_seconds:
+            raise TooSlow(f"{self.describe} would take about {format_seconds(elapsed / fraction)} on this machine, "
+                          f"so the kit stopped it after {format_seconds(elapsed)}.", self.why_slow(session))
+
+    def fraction_done(self, session):
+        if not self.expected or not session.runs:
+            return 0.0
+        done = sum(min(run.evaluations, self.expected) for run in session.runs)
+        return done / (self.expected * len(session.runs))
+
+    def detail(self, session):
+        """'iteration 5 of 20': how far the slowest run still going has come."""
+        if self.iterations is None:
+            return ""
+        going = [run.evaluations for run in session.runs if run.state != "done"]
+        evaluations = min(going) if going else self.expected
+        iteration = min(max(evaluations - 1, 0) // _batch.EVALUATIONS_PER_ITERATION, self.iterations)
+        return f"iteration {iteration} of {self.iterations}"
+
+    @staticmethod
+    def why_slow(session):
+        """What made the work slow, in a sentence, from what was played so far."""
+        if session.step_by_step > 0.5 * max(session.episodes_played, 1):
+            return ("Most episodes were played step by step with your CartPoleLinearPolicy.__call__, because it does "
+                    "not give the actions of equation (1) (TODO 1.1.1); fix it, or pass max_minutes=None to wait.")
+        evaluations = sum(run.evaluations for run in session.runs) / max(len(session.runs), 1)
+        if session.rounds > 3 * max(evaluations, 1):
+            return ("Your code asks for its episodes one at a time in a way the kit cannot foresee (eval_params draws "
+                    "different seeds each time it runs?); pass max_minutes=None to wait.")
+        return "Pass max_minutes=None to wait for it."
 
 
 def _refuse_hours_of_step_by_step(num_runs, iterations, rollouts, describe, max_seconds):
@@ -155,7 +212,7 @@ def _refuse_hours_of_step_by_step(num_runs, iterations, rollouts, describe, max_
     params, obs, action, expected = disagreement
     shown = ", ".join(f"{value:.3g}" for value in obs)
     got = f"raises {action!r}" if isinstance(action, BaseException) else f"returns {action!r}"
-    raise _batch.TooSlow(
+    raise TooSlow(
         f"{describe} would take about {format_seconds(seconds)}, so the kit did not start it: your "
         f"CartPoleLinearPolicy.__call__ (TODO 1.1.1) does not follow equation (1), so each of its {episodes:,} "
         "episodes would be played step by step with it.",

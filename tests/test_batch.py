@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from hwlib import CartPoleLinearPolicy, TodoNotDone, _batch, _engine, policy_search, run_policy, settings
-from hwlib.cartpole import play_episode, random_policy_rewards, run_episodes
-from hwlib.training import learning_rate_sweep, run_training
+from hwlib.cartpole import make_env, play_episode, random_policy_rewards, run_episodes
+from hwlib.training import TooSlow, learning_rate_sweep, run_training
 
 PARAMS = [0.1, -0.3, -0.9, -0.2]
 
@@ -56,18 +56,20 @@ def test_one_evaluation_is_played_in_one_batch_of_exactly_its_episodes(monkeypat
     assert policy_search.eval_params is STYLES[style]  # put back after the run
 
 
-def test_unseeded_episodes_come_from_the_runs_generator_batched_or_not(monkeypatch):
+def test_unseeded_episodes_start_where_the_runs_own_env_resets_batched_or_not(monkeypatch):
     monkeypatch.setattr(policy_search, "eval_params", eval_unseeded)
     results = {}
     for batched in (True, False):
         session, replaying = session_replaying(batched=batched)
         with replaying:
             results[batched] = session.run([lambda: policy_search.eval_params(PARAMS, num_rollouts=6)] * 2,
-                                           generator_seeds=[7, 8])
+                                           env_seeds=[7, 8])
         assert session.episodes_played == 12
     assert results[True] == results[False]
-    draws = np.random.default_rng(7).integers(0, 2**31 - 1, size=6)
-    assert results[True][0] == plain_mean(CartPoleLinearPolicy(PARAMS), draws.tolist())
+    # Run 0's episodes: an environment reset with seed 7, then reset() five more times (gymnasium's own stream).
+    env, policy = make_env(), CartPoleLinearPolicy(PARAMS)
+    rewards = [play_episode(policy, seed=7 if k == 0 else None, env=env).total_reward for k in range(6)]
+    assert results[True][0] == float(np.mean(rewards))
 
 
 @pytest.mark.parametrize("style", list(STYLES))
@@ -252,7 +254,7 @@ def test_interrupt_stops_a_run_busy_in_its_own_code():
 def test_a_sweep_that_would_take_hours_says_so_before_it_starts(monkeypatch):
     monkeypatch.setattr(CartPoleLinearPolicy, "__call__", MirroredPolicy.__call__)
     started = time.monotonic()
-    with pytest.raises(_batch.TooSlow, match=r"would take about .* so the kit did not start it.*step by step") as caught:
+    with pytest.raises(TooSlow, match=r"would take about .* so the kit did not start it.*step by step") as caught:
         learning_rate_sweep(progress=False)
     assert "equation (1) gives" in str(caught.value) and "max_minutes=None" in str(caught.value)
     assert caught.value._render_traceback_()[1].startswith("For example CartPoleLinearPolicy(")
@@ -273,3 +275,94 @@ def test_code_that_draws_from_numpys_global_generator_gets_the_plain_loops_numbe
         runs[batched, "next draw"] = np.random.randint(1000)  # the global generator moved on as in the plain loop
     np.testing.assert_array_equal(runs[True].rewards, runs[False].rewards)
     assert runs[True, "next draw"] == runs[False, "next draw"]
+
+
+def test_a_training_run_that_turns_out_slow_is_stopped_with_its_estimate(monkeypatch):
+    # One run is never refused before it starts (it takes minutes at worst); once it has run a few
+    # seconds, a projection beyond max_minutes stops it, naming the reason.
+    monkeypatch.setattr(CartPoleLinearPolicy, "__call__", MirroredPolicy.__call__)
+    with pytest.raises(TooSlow, match=r"This training run would take about .* so the kit stopped it after") as caught:
+        run_training(learning_rate=0.001, progress=False, max_minutes=0.01)
+    assert "step by step" in caught.value.second
+    assert policy_search.eval_params.__module__ == "hwlib.policy_search" and not hasattr(policy_search.eval_params, "__wrapped__")
+
+
+def eval_os_random(params, num_rollouts=20, seed=0):
+    import os
+
+    policy = CartPoleLinearPolicy(params)
+    return float(np.mean([run_policy(policy, seed=int.from_bytes(os.urandom(3), "little")) for _ in range(num_rollouts)]))
+
+
+def test_a_sweep_whose_episodes_cannot_be_foreseen_is_stopped_when_it_would_take_too_long(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_os_random)
+    with pytest.raises(TooSlow, match=r"This learning-rate sweep would take about") as caught:
+        learning_rate_sweep([0.001, 0.002], num_seeds=10, progress=False, max_minutes=0.01)
+    assert "one at a time" in caught.value.second
+    assert not [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+
+
+class counting:
+    """eval_params that counts how often its code runs."""
+
+    def __init__(self, function):
+        self.function, self.calls = function, 0
+        self.__signature__ = __import__("inspect").signature(function)
+
+    def __call__(self, *args, **kwargs):
+        self.calls += 1
+        return self.function(*args, **kwargs)
+
+
+@pytest.mark.parametrize("style", ["seed + k", "generator"])
+def test_a_run_whose_seeds_follow_its_arguments_is_foreseen_not_recorded_twice(monkeypatch, style):
+    student = counting(STYLES[style])
+    monkeypatch.setattr(policy_search, "eval_params", student)
+    run = run_training(4, 5, 0.001, seed=3, progress=False)
+    evaluations = 1 + 9 * 4
+    assert student.calls < 1.5 * evaluations  # recorded then replayed every time would be 2x
+    monkeypatch.setattr(policy_search, "eval_params", STYLES[style])
+    with _no_route():
+        plain = policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)
+    np.testing.assert_array_equal(run.rewards, plain.rewards)
+
+
+def eval_seeds_from_params(params, num_rollouts=20, seed=0):
+    """Correct enough, but its seeds depend on the parameters too: foreseeing them goes wrong once."""
+    policy = CartPoleLinearPolicy(params)
+    shift = int(abs(float(np.sum(params))) * 1000) % 7
+    return float(np.mean([run_policy(policy, seed=seed + shift + k) for k in range(num_rollouts)]))
+
+
+def test_a_wrong_foresight_starts_the_call_again_and_changes_no_number(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_seeds_from_params)
+    session, replaying = session_replaying()
+    with replaying:
+        [run] = session.run([lambda: policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)])
+    assert session.runs[0].memory.refuted
+    with _no_route():
+        plain = policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)
+    np.testing.assert_array_equal(run.rewards, plain.rewards)
+    np.testing.assert_array_equal(run.params_history, plain.params_history)
+
+
+def test_unseeded_code_is_foreseen_from_the_runs_own_env(monkeypatch):
+    student = counting(eval_unseeded)
+    monkeypatch.setattr(policy_search, "eval_params", student)
+    session, replaying = session_replaying()
+    with replaying:
+        [run] = session.run([lambda: policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)], env_seeds=[3])
+    assert not session.runs[0].memory.refuted and student.calls < 1.5 * (1 + 9 * 4)
+    assert session.episodes_played == (1 + 9 * 4) * 5  # nothing foreseen that was not asked for
+    looped = run_training(4, 5, 0.001, seed=3, batched=False, progress=False)
+    np.testing.assert_array_equal(run.rewards, looped.rewards)
+
+
+def test_unseeded_episodes_of_a_policy_played_step_by_step_equal_the_plain_loop(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_unseeded)
+    monkeypatch.setattr(CartPoleLinearPolicy, "__call__", MirroredPolicy.__call__)
+    options = {"learning_rates": [0.0005, 0.002], "num_seeds": 2, "num_training_iterations": 2,
+               "num_rollouts_per_eval": 4, "progress": False}
+    batched, looped = learning_rate_sweep(**options), learning_rate_sweep(**options, batched=False)
+    np.testing.assert_array_equal(batched.rewards, looped.rewards)
+    assert len(np.unique(batched.rewards)) > 3

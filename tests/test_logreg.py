@@ -231,7 +231,7 @@ def test_fit_continues_from_the_current_weights():
     np.testing.assert_allclose(twice.weights, once.weights, rtol=1e-12)
 
 
-# --- the door: every argument is checked before a TODO's code runs ---------------------------
+# --- every argument is checked before a TODO's code runs -------------------------------------
 
 
 @pytest.mark.parametrize("n_features", [0, -1, 2.5, True, "3", None])
@@ -268,7 +268,7 @@ def test_fit_rejects_bad_iteration_counts(n_iters):
 
 def test_training_rejects_labels_out_of_range():
     X, y = small_problem(num_classes=3)
-    # The mistake of training a two-class model on the class labels 0..C-1 is stopped at the door.
+    # The mistake of training a two-class model on the class labels 0..C-1 is stopped by the argument checks.
     with pytest.raises(ValueError, match=r"y must hold class indices 0\.\.1, found \[2\]"):
         TwoClassLogisticRegressionClassifier(3).gradient_ascent_step(X, y, 0.1)
     with pytest.raises(ValueError, match=r"y must hold class indices 0\.\.1, found \[2\]"):
