@@ -38,7 +38,7 @@ import time
 import numpy as np
 
 from hwlib import _engine
-from hwlib._replay import PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, Redo, Replaying, RunMemory
+from hwlib._replay import PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying, RunMemory
 from hwlib.cartpole import CartPoleLinearPolicy, _play, make_env
 
 __all__ = ["EVALUATIONS_PER_ITERATION", "PLACEHOLDER_REWARD", "Cancelled", "Session", "current_run"]
@@ -68,7 +68,7 @@ class _Run:
 
     def __init__(self, session, index, task, env_seed):
         self.session, self.index, self.task = session, index, task
-        self._env_seed, self._env = env_seed, None
+        self.own = OwnEnv(env_seed)  # where its unseeded episodes start
         self._watch, self._globals_used = _WATCH_CALLS, False
         self.recording = False
         self.replaying = 0  # depth of replayed calls running for real
@@ -79,50 +79,17 @@ class _Run:
         self.go = threading.Event()  # set when this run's thread may go on
         self.result = self.error = None
 
-    def unseeded_env(self):
-        """The run's own environment and the seed for its next reset: the training run's seed the
-        first time (the env is made then), None (the env's own stream) afterwards."""
-        if self._env is None:
-            self._env = make_env()
-            return self._env, self._env_seed
-        return self._env, None
-
-    def next_start(self):
-        """Where the next ``reset()`` of the run's own environment starts an episode (float64 (4,))."""
-        env, seed = self.unseeded_env()
-        env.reset(seed=seed)
-        return np.array(env.unwrapped.state, dtype=np.float64)
-
-    def next_starts(self, count, consume):
-        """The start states (bytes) of the next ``count`` unseeded episodes; without ``consume`` the
-        run's env is left where it was."""
-        if consume:
-            return [self.next_start().tobytes() for _ in range(count)]
-        made, state = self._env is not None, self._env_state()
-        starts = [self.next_start().tobytes() for _ in range(count)]
-        if made:
-            self._env.unwrapped.np_random.bit_generator.state = state
-        else:
-            self.close()
-        return starts
-
-    def _env_state(self):
-        return None if self._env is None else self._env.unwrapped.np_random.bit_generator.state
-
     def random_state(self):
         """The state of the run's own environment's generator, and numpy's and Python's global ones
         while they are watched."""
         watching = self._globals_used or self._watch > 0
-        return self._env_state(), np.random.get_state() if watching else None, random.getstate() if watching else None
+        return self.own.state(), np.random.get_state() if watching else None, random.getstate() if watching else None
 
     def set_random_state(self, state):
         """Put the random state back. The global generators are slow to save; they are watched for the
         first few calls, and from then on only if the run's code drew from them."""
         env_state, numpy_state, python_state = state
-        if env_state is None:
-            self.close()  # made during the call: made (and seeded) again at the next unseeded episode
-        else:
-            self._env.unwrapped.np_random.bit_generator.state = env_state
+        self.own.set_state(env_state)
         if numpy_state is None:
             return
         now = np.random.get_state()
@@ -132,11 +99,6 @@ class _Run:
             random.setstate(python_state)
         elif not self._globals_used:
             self._watch -= 1
-
-    def close(self):
-        if self._env is not None:
-            self._env.close()
-            self._env = None
 
 
 class Session(Replaying):
@@ -189,7 +151,7 @@ class Session(Replaying):
                 self._env.close()
                 self._env = None
             for run in self.runs:
-                run.close()
+                run.own.close()
         return [run.result for run in self.runs]
 
     def _run_inline(self, run):
@@ -290,11 +252,11 @@ class Session(Replaying):
         if not self.batched:  # the plain loop; an unseeded episode is the next reset() of the run's env
             self.episodes_played += 1
             if seed is None:
-                env, first_seed = run.unseeded_env()
+                env, first_seed = run.own.for_reset()
                 return _play(policy, first_seed, env).total_reward
             return _play(policy, seed, None).total_reward
         if seed is None:  # it starts where the next reset() of the run's own env starts it
-            seed = run.next_start().tobytes()
+            seed = run.own.next_start()
         params = policy.params if isinstance(policy, CartPoleLinearPolicy) else None
         if type(params) is np.ndarray and params.dtype == _FLOAT64 and params.shape == _SHAPE:
             data = params.tobytes()

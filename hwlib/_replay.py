@@ -23,11 +23,14 @@ the foreseen episodes it did not ask for are played that once.
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import functools
 import inspect
 
 import numpy as np
+
+from hwlib.cartpole import make_env
 
 PLACEHOLDER_REWARD = 0.0  # what an episode not yet played gives while a call is being recorded
 UNSEEDED = "unseeded"  # a call that asks for its episodes without seeds: (UNSEEDED, how many)
@@ -58,6 +61,79 @@ class RunMemory:
 
     def foreseeable(self):
         return not self.refuted and self.confirmations >= _CONFIRMATIONS
+
+
+class OwnEnv:
+    """A run's own environment, where its unseeded episodes start as in the plain loop: its first
+    ``reset`` takes the run's seed, the next ones its own stream. The starts drawn for a call's
+    recording pass (or foreseen) are handed to its real pass, which asks for the same ones, so they
+    are drawn once; any left over are given back (``rewind``)."""
+
+    def __init__(self, seed):
+        self.seed, self.env, self.first = seed, None, True
+        self.drawn = None  # while recording: the starts drawn, in order
+        self.handed = collections.deque()  # drawn for the real pass of the call running now
+        self._handed_from, self._num_handed = None, 0  # the state before the first of them, and how many
+
+    def for_reset(self):
+        """The env and the seed for its next ``reset`` (the plain loop plays in it)."""
+        if self.env is None:
+            self.env = make_env()
+        seed, self.first = (self.seed if self.first else None), False
+        return self.env, seed
+
+    def next_start(self):
+        """The start state (float64 bytes) of the run's next unseeded episode."""
+        if self.handed:
+            return self.handed.popleft()
+        env, seed = self.for_reset()
+        raw = env.unwrapped  # its reset draws the start; the wrappers' reset only checks and counts
+        raw.reset(seed=seed)
+        start = np.asarray(raw.state, dtype=np.float64).tobytes()
+        if self.drawn is not None:
+            self.drawn.append(start)
+        return start
+
+    def start_drawing(self):
+        """Note the starts drawn from now on (``hand_over`` gives them to the real pass)."""
+        self.drawn, self._handed_from = [], self.state()
+
+    def hand_over(self):
+        drawn, self.drawn = self.drawn, None
+        self.handed.extend(drawn)
+        self._num_handed = len(self.handed)
+
+    def draw(self, count, hand_over):
+        """The next ``count`` starts; ``hand_over``: for the real pass that follows (not a recording)."""
+        if not hand_over:
+            return [self.next_start() for _ in range(count)]
+        self.start_drawing()
+        try:
+            return [self.next_start() for _ in range(count)]
+        finally:
+            self.hand_over()
+
+    def state(self):
+        return self.first, None if self.first or self.env is None else self.env.unwrapped.np_random.bit_generator.state
+
+    def set_state(self, state):
+        self.handed.clear()
+        self.first, generator_state = state
+        if generator_state is not None:
+            self.env.unwrapped.np_random.bit_generator.state = generator_state
+
+    def rewind(self):
+        """After a call: the starts handed to it and not asked for go back to the env."""
+        if self.handed:
+            used = self._num_handed - len(self.handed)
+            self.set_state(self._handed_from)
+            for _ in range(used):
+                self.next_start()
+
+    def close(self):
+        if self.env is not None:
+            self.env.close()
+            self.env = None
 
 
 class Replaying:
@@ -111,12 +187,14 @@ class Replaying:
                 return self._real_pass(run, function, args, kwargs, call, counted)
             finally:
                 run.memory.foresaw = False
+                run.own.rewind()
 
         return replayed
 
     def _record(self, run, function, args, kwargs, state):
         """Run ``function`` once with placeholder rewards; what it asked for is played in the next round."""
         run.recording, run.recorded = True, {}
+        run.own.start_drawing()
         try:
             function(*args, **kwargs)
         except (Cancelled, KeyboardInterrupt):
@@ -125,7 +203,14 @@ class Replaying:
             pass
         finally:
             run.recording = False
-            run.set_random_state(state)
+            if run.own.drawn:  # the real pass asks for the same starts: it is handed these, not drawn again
+                after = run.own.state()
+                run.set_random_state(state)
+                run.own.set_state(after)
+                run.own.hand_over()
+            else:
+                run.own.drawn = None
+                run.set_random_state(state)
         for key, request in run.recorded.items():
             if key not in self._results:
                 self._pending.setdefault(key, request)
@@ -169,7 +254,7 @@ class Replaying:
             return False
         policy_class, seeds = known
         if seeds[0] == UNSEEDED:  # the next starts of the run's own env: drawn for real while recording
-            seeds = run.next_starts(seeds[1], consume=into is run.recorded)
+            seeds = run.own.draw(seeds[1], hand_over=into is not run.recorded)
         data = params.tobytes()
         for seed in seeds:
             key = (policy_class, data, seed)

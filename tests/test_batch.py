@@ -366,3 +366,34 @@ def test_unseeded_episodes_of_a_policy_played_step_by_step_equal_the_plain_loop(
     batched, looped = learning_rate_sweep(**options), learning_rate_sweep(**options, batched=False)
     np.testing.assert_array_equal(batched.rewards, looped.rewards)
     assert len(np.unique(batched.rewards)) > 3
+
+
+def eval_unseeded_until_enough(params, num_rollouts=20, seed=0):
+    """Correct, unseeded, and it stops early once it has seen enough reward: its recording pass
+    (placeholder rewards) asks for more starts than its real pass uses."""
+    policy = CartPoleLinearPolicy(params)
+    rewards = []
+    while len(rewards) < num_rollouts:
+        rewards.append(run_policy(policy))
+        if sum(rewards) >= 1000:
+            break
+    return float(np.mean(rewards))
+
+
+def test_unseeded_starts_a_call_did_not_use_go_back_to_the_runs_env(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_unseeded_until_enough)
+    kit = run_training(4, 5, 0.002, seed=3, progress=False)
+    looped = run_training(4, 5, 0.002, seed=3, batched=False, progress=False)
+    assert any(reward >= 200 for reward in looped.rewards)  # the early stop is taken
+    np.testing.assert_array_equal(kit.rewards, looped.rewards)
+    np.testing.assert_array_equal(kit.params_history, looped.params_history)
+
+
+def test_each_unseeded_start_is_drawn_from_the_runs_env_once(monkeypatch):
+    from gymnasium.envs.classic_control.cartpole import CartPoleEnv
+
+    resets, reset = [], CartPoleEnv.reset
+    monkeypatch.setattr(CartPoleEnv, "reset", lambda self, *a, **k: resets.append(1) or reset(self, *a, **k))
+    monkeypatch.setattr(policy_search, "eval_params", eval_unseeded)
+    run_training(3, 5, 0.001, seed=3, progress=False)
+    assert len(resets) == (1 + 9 * 3) * 5  # one per episode: recording and real pass share them
