@@ -40,15 +40,15 @@ class TodoNotDone(NotImplementedError):
         what, where = TODO_CODE.get(self.todo, (None, None))
         first = f"TODO {self.todo} is not done yet" + (f": {what} in {where}" if what else "")
         markers = f"### BEGIN TODO {self.todo} and ### END TODO {self.todo}"
+        then = "then Kernel → Restart Kernel and Run All Cells."
         if where is None:
-            todo = "Write its code between " + markers + "."
+            todo = f"Write its code between {markers}, {then}"
         elif where.endswith(".ipynb"):
-            todo = f"Write it between {markers} in that cell, then run the cell again."
+            todo = f"Write it between {markers} in that cell, {then}"
         elif self.todo == "1.3.3":
-            todo = (f"Set LEARNING_RATE between {markers} to the rate you chose (or pass learning_rate=...), "
-                    "save, then Kernel → Restart Kernel and Run All Cells.")
+            todo = f"Set LEARNING_RATE between {markers} to the rate you chose (or pass learning_rate=...), save, {then}"
         else:
-            todo = f"Write it between {markers} there, save, then Kernel → Restart Kernel and Run All Cells."
+            todo = f"Write it between {markers} there, save, {then}"
         return first, todo
 
     def _render_traceback_(self):

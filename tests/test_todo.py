@@ -27,6 +27,9 @@ def test_the_two_lines_name_the_todo_its_code_and_what_to_do():
     assert isinstance(error, NotImplementedError) and error.todo == "1.1.1"
     assert "LEARNING_RATE" in TodoNotDone("1.3.3").lines()[1]
     assert TodoNotDone("9.9.9").lines()[0] == "TODO 9.9.9 is not done yet"
+    for todo in [*TODO_CODE, "9.9.9"]:  # every second line: fix it, then restart and run everything again
+        second = TodoNotDone(todo).lines()[1]
+        assert f"### BEGIN TODO {todo}" in second and second.endswith("Kernel → Restart Kernel and Run All Cells."), second
 
 
 def test_ipython_shows_the_two_lines_instead_of_a_traceback(capsys):
