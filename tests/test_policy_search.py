@@ -204,3 +204,23 @@ def test_in_a_kit_run_each_pass_of_eval_params_checks_once_and_the_batch_checks_
     assert counts[("check_params", "params")] == 2  # the recording pass and the real one
     assert counts[("check_seed", "seed")] == 2 * (1 + 5)
     assert not {check for check, _ in counts} & {"check_params_batch", "check_seeds", "check_count_batch"}
+
+
+def test_in_a_kit_training_run_each_call_of_eval_params_checks_its_params_once(monkeypatch):
+    from hwlib import _engine
+    from hwlib.training import run_training
+
+    calls, original = [], policy_search.eval_params
+
+    def counted_eval_params(params, num_rollouts=5, seed=0):
+        calls.append(seed)
+        return original(params, num_rollouts, seed)
+
+    _engine.agrees_with_equation_one(CartPoleLinearPolicy(np.zeros(4)), np.zeros(4))  # its once-per-__call__ check
+    monkeypatch.setattr(policy_search, "eval_params", counted_eval_params)
+    run, counts = checks_made(run_training, 4, 5, 0.001, seed=3, progress=False)
+    # By CartPoleLinearPolicy(params) in each call of eval_params, and once for the policy the run returns;
+    # the batch engine makes the policies of foreseen calls without checking their params again.
+    assert counts[("check_params", "params")] == len(calls) + 1
+    assert len(calls) < 2 * (1 + 9 * 4)  # most calls foreseen, not recorded first
+    assert not {check for check, _ in counts} & {"check_params_batch", "check_seeds", "check_count_batch"}
