@@ -2,8 +2,8 @@
 
 Your code is plain and sequential: ``eval_params`` loops over its rollouts and calls
 ``run_policy`` once per episode, training loops over iterations, the learning-rate sweep trains
-run after run. Played one by one, the sweep's 640,000 episodes would take the better part of an
-hour. ``Session.run(tasks)`` (used by ``hwlib/training.py``) makes the same code fast:
+run after run. Played one by one, the sweep's 796,400 episodes would take more than an hour.
+``Session.run(tasks)`` (used by ``hwlib/training.py``) makes the same code fast:
 
 1. **Record, then replay** (``hwlib/_replay.py``). ``eval_params`` and ``scalar_finite_diff``, as
    your training calls them, run twice per call: first with placeholder rewards, which tells the
@@ -11,13 +11,13 @@ hour. ``Session.run(tasks)`` (used by ``hwlib/training.py``) makes the same code
    of them were played in one batch. Nothing is played that the code does not ask for. (Once a
    run's ``eval_params`` has shown that its seeds follow from its arguments, the first pass of
    its calls is skipped.)
-2. **Runs side by side.** Several tasks (the sweep's 160 training runs) run in threads, one at a
+2. **Runs side by side.** Several tasks (the sweep's 220 training runs) run in threads, one at a
    time in a fixed order, each until it waits for episodes; then the main thread plays what all
    of them wait for in one batch (``hwlib/_engine.py``). The order never depends on timing, so a
    sweep gives the same numbers every time.
-3. **Episodes without a seed** (``run_policy(policy)``) start from a seed drawn from the run's own
-   generator (``np.random.default_rng(seed)`` of the training run), so they too are the same in
-   the batched run and in the plain loop (``batched=False``), and from one run to the next.
+3. **Episodes without a seed** (``run_policy(policy)``) start where the next ``reset()`` of the
+   run's own environment (seeded once with the training run's seed) starts them, so they too are
+   the same in the batched run and in the plain loop (``batched=False``), and from one run to the next.
 4. **Checked, not trusted**: a parameter vector's episodes are played with the kit's copy of
    equation (1) only after ``_engine.agrees_with_equation_one``; others are played step by step
    with the policy's own ``__call__``. Results are kept by (policy class, parameters, seed), and

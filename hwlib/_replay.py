@@ -7,8 +7,9 @@ training looks them up). In a run, the outermost wrapped call
 
 1. runs once with placeholder rewards (``PLACEHOLDER_REWARD`` for every episode not yet played),
    so that every episode it asks for is written down, whatever seeds it uses; the random state
-   (the run's generator, and numpy's and ``random``'s global ones while the run draws from them)
-   is put back afterwards, so that the second run asks for the same episodes;
+   (the run's own environment, ``OwnEnv``, and numpy's and ``random``'s global ones while the run
+   draws from them) is put back afterwards, so that the second run asks for the same episodes
+   (the unseeded starts the first run drew are handed to the second, not drawn again);
 2. then runs for real, after those episodes were played in one batch with the other runs'.
 
 Foreseen instead of recorded: once a run's ``eval_params`` has asked for the same seeds every
