@@ -58,8 +58,8 @@ def timed(function, *args, **kwargs):
 def eval_seed_plus_k(params, num_rollouts=settings.NUM_ROLLOUTS, seed=0):
     policy = CartPoleLinearPolicy(params)
     total = 0.0
-    for k in range(num_rollouts):
-        total += run_policy(policy, seed=seed + k)
+    for rollout in range(num_rollouts):
+        total += run_policy(policy, seed=seed + rollout)
     return total / num_rollouts
 
 
