@@ -3,7 +3,9 @@
 Run from the kit's root:  .venv/bin/python benchmarks/bench_landscape.py  [--quick] [--loop-cells N]
 
 Targets (issue 11): the slice <= 2 s on 2 cores and >= 10x faster than playing its episodes one
-by one with ``run_policy(CartPoleLinearPolicy(params), seed=...)``. The loop plays every cell of
+by one with ``run_policy(CartPoleLinearPolicy(params), seed=...)``. Both play the student's
+``CartPoleLinearPolicy`` (issue 18): the batch only after checking its ``__call__`` against
+equation (1) for every cell, which is included in its time. The loop plays every cell of
 the slice (about 15 s per slice on 2 cores) and its rewards must equal the batched ones.
 ``--loop-cells N`` plays only a seeded random subset of N cells (every episode of each) and
 extrapolates its time per cell to all cells (a random subset is as hard as the slice on
@@ -47,22 +49,17 @@ def timed(function, *args, **kwargs):
 
 
 def play_one_by_one(cell_params, seeds):
-    """Mean reward of every cell, its episodes played one at a time: the plain loop."""
+    """Mean reward of every cell, its episodes played one at a time with run_policy: the plain loop."""
     env = make_env()
-    try:
-        return np.array([
-            np.mean([run_policy(CartPoleLinearPolicy(params), seed=int(seed), env=env) for seed in seeds])
-            for params in cell_params
-        ])
-    except Exception as error:  # the TODO 1.1.1 policy being rewritten: the kit's own one-by-one loop
-        print(f"  (run_policy with CartPoleLinearPolicy raised {error!r}; timing run_episodes(batched=False))")
-        rewards = run_episodes(np.repeat(cell_params, len(seeds), axis=0), np.tile(seeds, len(cell_params)), batched=False)
-        return rewards.reshape(len(cell_params), len(seeds)).mean(axis=1)
+    return np.array([
+        np.mean([run_policy(CartPoleLinearPolicy(params), seed=int(seed), env=env) for seed in seeds])
+        for params in cell_params
+    ])
 
 
 def bench_slice(name, theta, grid_size, repeats, loop_cells):
-    reward_slice(theta, grid_size=3, num_episodes=1)  # warm-up: imports, gymnasium's registry
-    runs = [timed(reward_slice, theta, grid_size=grid_size) for _ in range(repeats)]
+    reward_slice(theta, grid_size=3, num_episodes=1, progress=False)  # warm-up: imports, gymnasium's registry
+    runs = [timed(reward_slice, theta, grid_size=grid_size, progress=False) for _ in range(repeats)]
     landscape = runs[0][0]
     seconds = sorted(run_time for _, run_time in runs)
     num_cells = grid_size**2

@@ -2,15 +2,11 @@
 
 # Problem 1: CartPole policy search by finite differences
 from hwlib import settings
+from hwlib._todo import TodoNotDone
 from hwlib.cartpole import CartPoleLinearPolicy, play_episode, random_policy_rewards, run_episodes, run_policy
 from hwlib.finite_diff import scalar_finite_diff
-from hwlib.policy_search import (
-    TrainingRun,
-    eval_params,
-    iterations_to_converge,
-    learning_rate_sweep,
-    train_cartpole_policy,
-)
+from hwlib.policy_search import TrainingRun, eval_params, iterations_to_converge, train_cartpole_policy
+from hwlib.training import SweepResult, learning_rate_sweep, run_training
 
 # Problem 2: food-cutting classification by one-vs-rest logistic regression.
 from hwlib.food_data import (

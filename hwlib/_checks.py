@@ -55,6 +55,8 @@ def check_params_batch(params, name="params"):
 
 def check_seed(seed, name="seed"):
     """A seed: a non-negative integer."""
+    if type(seed) is int and seed >= 0:  # the common case, without the slower checks below
+        return seed
     if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
         raise ValueError(f"{name} must be a non-negative integer, got {seed!r}")
     return int(seed)
@@ -80,3 +82,14 @@ def check_positive_number(value, name):
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not np.isfinite(value) or value <= 0:
         raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     return float(value)
+
+
+def check_path(path, name="path"):
+    """A training path: shape (T + 1, 4), finite; returned as a float64 array."""
+    array = as_float_array(path, name)
+    if array.ndim != 2 or array.shape[1] != NUM_PARAMS or array.shape[0] == 0:
+        raise ValueError(
+            f"{name} must have shape (T + 1, 4): the parameters before training and after each update, "
+            f"got shape {array.shape}"
+        )
+    return check_finite(array, name)

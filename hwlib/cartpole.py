@@ -15,12 +15,11 @@ The policy of the handout's equation (1) is linear: action 1 when ``params @ obs
 Writing its ``__call__`` is TODO 1.1.1.
 
 ``run_policy`` plays one episode through a single ``gym.make`` environment, the handout's loop,
-and it is all the homework's code ever calls. The kit makes that loop fast without the student
-noticing: inside ``eval_params`` (and the learning-rate sweep) ``run_policy`` hands its episode to
-a batcher (``hwlib/_batch.py``) that plays many episodes at once in gymnasium's vectorised
-CartPole (``run_episodes``). Each batched episode starts exactly where ``reset(seed=...)`` puts a
-single environment and every reward comes from ``step``, so the rewards are the same as one by
-one: the batch is only faster, never different.
+and it is all the homework's code ever calls. When the kit runs your training
+(``hwlib/training.py``), it plays the episodes your code asks for many at a time; every one of
+them starts where ``reset(seed=...)`` starts a single environment and plays your policy, so the
+rewards are those of the plain loop. ``run_episodes`` plays many policies at once the same way
+(the random policies of 1.1.3 and the reward landscape use it).
 """
 
 from __future__ import annotations
@@ -30,11 +29,10 @@ from dataclasses import dataclass
 import gymnasium as gym
 import numpy as np
 
-from hwlib import _batch
+from hwlib import _engine, _progress
 from hwlib._checks import check_count, check_observation, check_params, check_params_batch, check_seed, check_seeds
-
-ENV_ID = "CartPole-v1"
-NUM_OBSERVATIONS = 4
+from hwlib._engine import ENV_ID, NUM_OBSERVATIONS
+from hwlib._todo import TodoNotDone  # noqa: F401 - the TODO's starting code raises it until you write it
 MAX_EPISODE_REWARD = 500
 SEED_BOUND = 2**31 - 1  # episode seeds are drawn from [0, SEED_BOUND)
 OBSERVATION_NAMES = ("cart position", "cart velocity", "pole angle", "pole angular velocity")
@@ -94,15 +92,18 @@ def play_episode(policy, seed=None, env=None) -> Episode:
 
 
 def _check_episode_arguments(policy, seed):
-    """The door of the episode functions: a callable policy, and a seed or None."""
+    """The argument checks of the episode functions: a callable policy, and a seed or None."""
     if not callable(policy):
         raise TypeError(f"policy must be callable as policy(obs) -> action, got {type(policy).__name__}")
     return None if seed is None else check_seed(seed, "seed")
 
 
-def _play(policy, seed, env):
+def _play(policy, seed, env, start=None):
     env = make_env() if env is None else env
     obs, _ = env.reset(seed=seed)
+    if start is not None:  # the kit's runs: an unseeded episode starts where its run's env put it
+        env.unwrapped.state = np.array(start, dtype=np.float64)
+        obs = np.array(start, dtype=np.float32)
     states, actions, total_reward = [obs], [], 0.0
     done = False
     while not done:
@@ -118,17 +119,16 @@ def _play(policy, seed, env):
 def run_policy(policy, seed=None, env=None):
     """Total reward of one episode of ``policy`` from ``reset(seed=seed)``: the handout's loop.
 
-    Inside ``eval_params`` or the learning-rate sweep the episode may be played in a batch with
-    others (same reward, see the module docstring); pass ``env`` to force a plain loop in it.
+    ``seed=None`` starts from a random state. Inside the kit's training runs (``hwlib/training.py``)
+    it is where the next ``reset()`` of the run's own environment (seeded once with the run's seed)
+    starts, so the run is reproducible, and the episode may be played together with others (same
+    reward); pass ``env`` to always play it here, in ``env``.
     """
     seed = _check_episode_arguments(policy, seed)
-    batcher = _batch.current_batcher()
-    if batcher is not None and env is None and seed is not None and isinstance(policy, CartPoleLinearPolicy):
-        return batcher.reward(policy, seed)
+    route = _engine.current_route()
+    if route is not None and env is None:
+        return route(policy, seed)
     return _play(policy, seed, env).total_reward
-
-
-_START_STATES = {}  # seed -> the start state reset(seed=seed) gives; seeds repeat a lot in training
 
 
 def start_states(seeds):
@@ -137,85 +137,47 @@ def start_states(seeds):
     Read from the environment itself (not re-derived), so it stays right if gymnasium changes
     how it draws start states. Returns a float64 array of shape (len(seeds), 4).
     """
-    seeds = check_seeds(seeds, "seeds")
-    missing = [int(seed) for seed in np.unique(seeds) if int(seed) not in _START_STATES]
-    if missing:
-        env = make_env()
-        for seed in missing:
-            env.reset(seed=seed)
-            _START_STATES[seed] = np.array(env.unwrapped.state, dtype=np.float64)
-        env.close()
-        if len(_START_STATES) > 1_000_000:
-            _START_STATES.clear()
-    return np.array([_START_STATES[int(seed)] for seed in seeds]).reshape(len(seeds), NUM_OBSERVATIONS)
+    return _engine.start_states(check_seeds(seeds, "seeds"))
 
 
-def batch_actions(params, observations):
-    """The batch engine's own copy of equation (1) for K episodes at once: row k of ``params``
-    (K, 4) acts on row k of ``observations`` (K, 4). Returns K int64 actions.
+def run_episodes(params, seeds, batched=True, progress=None):
+    """Total reward of one episode of ``CartPoleLinearPolicy(params[k])`` from ``reset(seed=seeds[k])``, for every row k.
 
-    The batcher only uses it for a policy after checking it against that policy's own
-    ``__call__`` (``hwlib/_batch.py``); any other policy is played with ``policy(obs)`` step by step.
-    """
-    return (np.einsum("kj,kj->k", params, observations) < 0).astype(np.int64)
-
-
-def run_episodes(params, seeds, batched=True):
-    """Total reward of one episode of the linear policy per row of ``params``: the batch engine.
-
-    Row k of ``params`` (shape (K, 4)) plays from the start state of ``reset(seed=seeds[k])``.
-    All K episodes run at once in gymnasium's vectorised CartPole, whose start states are set
-    once after ``reset`` (from then on rewards come only from ``step``). ``batched=False`` plays
-    them one by one with ``run_policy`` and ``CartPoleLinearPolicy`` instead. Both give the same
-    rewards when ``CartPoleLinearPolicy`` follows equation (1). Returns a float64 array of K rewards.
+    ``params`` has shape (K, 4), ``seeds`` K entries. With ``batched`` (the default) the episodes
+    of every parameter vector on which your ``__call__`` gives the actions of equation (1) are
+    played all at once in gymnasium's vectorised CartPole (``hwlib/_engine.py``), the others one
+    by one with your ``__call__``; ``batched=False`` plays every episode one by one. The rewards
+    are the same. ``progress`` names the work for a progress bar in the notebook (None: no bar).
+    Returns a float64 array of K rewards.
     """
     params = check_params_batch(params, "params")
     seeds = check_seeds(seeds, "seeds")
     if len(seeds) != len(params):
         raise ValueError(f"seeds must hold one seed per row of params ({len(params)}), got {len(seeds)}")
-    if not batched:
-        env = make_env()
-        return np.array([run_policy(CartPoleLinearPolicy(p), seed=int(s), env=env) for p, s in zip(params, seeds)])
-    return _play_batch(params, seeds)
+    if not isinstance(batched, bool):
+        raise TypeError(f"batched must be True or False, got {batched!r}")
+    return _play_episodes(params, seeds, batched, progress)
 
 
-def _play_batch(params, seeds):
-    num_episodes = len(params)
-    env = _vector_env(num_episodes, int(seeds[0]))
-    env.unwrapped.state = start_states(seeds).T.copy()
-    observations = env.unwrapped.state.T.astype(np.float32)
-
-    total_rewards = np.zeros(num_episodes)
-    rows = np.arange(num_episodes)  # the episode each env of the vector env plays
-    row_params, row_rewards = params, np.zeros(num_episodes)
-    running = np.ones(num_episodes, dtype=bool)
-    while running.any():
-        if 2 * running.sum() <= len(running) and len(running) >= 64:
-            # Most episodes have ended: go on with a smaller vector env that carries on exactly
-            # where the running ones are (their states and step counts), so fewer envs are stepped.
-            total_rewards[rows] = row_rewards
-            keep = np.flatnonzero(running)
-            smaller = _vector_env(len(keep), int(seeds[0]))
-            smaller.unwrapped.state = env.unwrapped.state[:, keep].copy()
-            smaller.unwrapped.steps = env.unwrapped.steps[keep].copy()
-            env.close()
-            env, rows, observations, running = smaller, rows[keep], observations[keep], running[keep]
-            row_params, row_rewards = params[rows], row_rewards[keep]
-        actions = batch_actions(row_params, observations)
-        observations, rewards, terminated, truncated, _ = env.step(actions)
-        # Under NEXT_STEP autoreset an env that just ended is reset on the following step and
-        # reports reward 0 then; the mask stops counting it right away all the same.
-        row_rewards += np.where(running, rewards, 0.0)
-        running &= ~(terminated | truncated)
-    env.close()
-    total_rewards[rows] = row_rewards
-    return total_rewards
-
-
-def _vector_env(num_envs, seed):
-    env = gym.make_vec(ENV_ID, num_envs=num_envs, vectorization_mode="vector_entry_point")
-    env.reset(seed=seed)
-    return env
+def _play_episodes(params, seeds, batched, progress):
+    rewards = np.zeros(len(params))
+    with _progress.Progress(progress, len(params), "episodes") as bar:
+        if batched:
+            unique, inverse = np.unique(params, axis=0, return_inverse=True)
+            inverse = inverse.reshape(-1)
+            trusted = np.array([_engine.agrees_with_equation_one(CartPoleLinearPolicy(p), p) for p in unique])
+            batch_rows = np.flatnonzero(trusted[inverse])
+            if batch_rows.size:
+                rewards[batch_rows] = _engine.play_batch(params[batch_rows], seeds[batch_rows])
+                bar.advance(batch_rows.size)
+            one_by_one = np.flatnonzero(~trusted[inverse])
+        else:
+            one_by_one = np.arange(len(params))
+        env = make_env() if one_by_one.size else None
+        for row in one_by_one:
+            rewards[row] = _play(CartPoleLinearPolicy(params[row]), int(seeds[row]), env).total_reward
+            bar.advance(1)
+    return rewards
 
 
 def sample_random_params(num_policies, seed, low=-1.0, high=1.0):
@@ -224,25 +186,31 @@ def sample_random_params(num_policies, seed, low=-1.0, high=1.0):
     seed = check_seed(seed, "seed")
     if not (np.isfinite(low) and np.isfinite(high) and low < high):
         raise ValueError(f"low and high must be finite with low < high, got low={low}, high={high}")
+    return _random_params(num_policies, seed, low, high)
+
+
+def _random_params(num_policies, seed, low=-1.0, high=1.0):
     return np.random.default_rng(seed).uniform(low, high, size=(num_policies, NUM_OBSERVATIONS))
 
 
 def episode_seeds(num_episodes, seed):
     """``num_episodes`` episode seeds drawn from one master ``seed``."""
-    num_episodes = check_count(num_episodes, "num_episodes")
-    seed = check_seed(seed, "seed")
+    return _episode_seeds(check_count(num_episodes, "num_episodes"), check_seed(seed, "seed"))
+
+
+def _episode_seeds(num_episodes, seed):
     return np.random.default_rng(seed).integers(0, SEED_BOUND, size=num_episodes)
 
 
 def random_policy_rewards(num_policies=1000, seed=0):
     """Handout 1.1.3: rewards of ``num_policies`` random linear policies (entries uniform in [-1, 1]).
 
-    Policy i is a ``CartPoleLinearPolicy`` (your 1.1.1) and plays one episode with ``run_policy``
-    from ``reset(seed=episode_seeds[i])``. Returns ``(params, rewards)``, shapes (num_policies, 4)
-    and (num_policies,).
+    Policy i is a ``CartPoleLinearPolicy`` (your 1.1.1) and plays one episode from
+    ``reset(seed=episode_seeds[i])``: ``run_episodes`` plays them all, checked against your
+    ``__call__``. Returns ``(params, rewards)``, shapes (num_policies, 4) and (num_policies,).
     """
-    params = sample_random_params(num_policies, seed)
-    seeds = episode_seeds(num_policies, seed + 1)
-    env = make_env()
-    rewards = np.array([run_policy(CartPoleLinearPolicy(p), seed=int(s), env=env) for p, s in zip(params, seeds)])
+    num_policies = check_count(num_policies, "num_policies")
+    seed = check_seed(seed, "seed")
+    params = _random_params(num_policies, seed)
+    rewards = _play_episodes(params, _episode_seeds(num_policies, seed + 1), True, f"{num_policies} random policies")
     return params, rewards

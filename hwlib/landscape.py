@@ -4,9 +4,10 @@ A slice lets two coordinates of θ vary over a square grid while the other two s
 values of a given θ. Every cell of the grid is scored by the mean total reward of the same few
 episodes (the same start states for every cell, drawn from one seed), so neighbouring cells
 differ only because their policies act differently, never because their episodes started
-elsewhere. All cells are played in one batch of gymnasium's vectorised CartPole
-(``hwlib.cartpole.run_episodes``); ``batched=False`` plays them one by one instead, with the
-same rewards.
+elsewhere. Every cell plays your ``CartPoleLinearPolicy`` (TODO 1.1.1): ``hwlib.cartpole.run_episodes``
+plays all cells in one batch of gymnasium's vectorised CartPole where your ``__call__`` gives
+the actions of equation (1), and the others step by step with it; ``batched=False`` plays them
+all one by one, with the same rewards.
 
 | setting           | default      | meaning                                           |
 |-------------------|--------------|---------------------------------------------------|
@@ -19,8 +20,9 @@ same rewards.
 Axes are 0-based indices into θ (0 is θ₁, the weight on the cart position).
 
 ``LandscapeExplorer`` is the notebook's widget: two dropdowns choose the axes, ``set_params``
-moves the slice to another θ. Its drawing is done by ``render_landscape``, a plain function,
-so the widget logic is tested without a browser.
+moves the slice to another θ (the slider panel's button calls ``from_panel``), and a status line
+says which θ it shows and where it came from. Its drawing is done by ``render_landscape``, a
+plain function, so the widget logic is tested without a browser.
 """
 
 from __future__ import annotations
@@ -28,14 +30,16 @@ from __future__ import annotations
 import html
 import numbers
 import threading
+import time
 from dataclasses import dataclass
 
 import ipywidgets as widgets
 import numpy as np
 
 from hwlib import settings
-from hwlib._checks import as_float_array, check_count, check_finite, check_params, check_positive_number, check_seed
-from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, OBSERVATION_NAMES, episode_seeds, run_episodes
+from hwlib._checks import as_float_array, check_count, check_params, check_path, check_positive_number, check_seed
+from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, _episode_seeds, _play_episodes
+from hwlib.plots.landscape import AXIS_LABELS, AXIS_NAMES, figure_png, format_theta, new_landscape_figure, plot_reward_landscape
 
 GRID_SIZE = settings.LANDSCAPE_GRID_SIZE
 VALUE_RANGE = settings.LANDSCAPE_VALUE_RANGE
@@ -43,8 +47,8 @@ NUM_EPISODES = settings.LANDSCAPE_NUM_EPISODES
 SEED = settings.LANDSCAPE_SEED
 DEFAULT_AXES = settings.LANDSCAPE_AXES
 
-AXIS_NAMES = ("θ₁", "θ₂", "θ₃", "θ₄")  # θ₁ is the weight on the cart position, ...
-AXIS_LABELS = tuple(f"{symbol} · {name}" for symbol, name in zip(AXIS_NAMES, OBSERVATION_NAMES))
+__all__ = ["AXIS_LABELS", "AXIS_NAMES", "LandscapeExplorer", "LandscapeFrame", "RewardSlice", "check_path",
+           "format_theta", "landscape_caption", "render_landscape", "reward_slice", "slice_params"]
 
 
 @dataclass(frozen=True)
@@ -70,7 +74,7 @@ class RewardSlice:
 
     def cell_params(self):
         """The parameters of every cell, shape (grid_size**2, 4), row by row (vertical value j, then horizontal i)."""
-        return slice_params(self.theta, self.axes, self.values)
+        return _slice_params(self.theta, self.axes, self.values)
 
 
 def check_axes(axes, name="axes"):
@@ -107,23 +111,14 @@ def check_grid_size(grid_size, name="grid_size"):
     return int(grid_size)
 
 
-def check_path(path, name="path"):
-    """A training path: shape (T + 1, 4), finite; returned as a float64 array."""
-    array = as_float_array(path, name)
-    if array.ndim != 2 or array.shape[1] != NUM_OBSERVATIONS or array.shape[0] == 0:
-        raise ValueError(
-            f"{name} must have shape (T + 1, 4): the parameters before training and after each update, "
-            f"got shape {array.shape}"
-        )
-    return check_finite(array, name)
-
-
 def slice_params(theta, axes, values):
     """Parameters of every cell of a slice, shape (len(values)**2, 4), row by row: row ``j * n + i``
     is ``theta`` with coordinate ``axes[0]`` set to ``values[i]`` and ``axes[1]`` to ``values[j]``."""
-    theta = check_params(theta, "theta")
-    horizontal, vertical = check_axes(axes)
-    values = np.asarray(values, dtype=np.float64)
+    return _slice_params(check_params(theta, "theta"), check_axes(axes), np.asarray(values, dtype=np.float64))
+
+
+def _slice_params(theta, axes, values):
+    horizontal, vertical = axes
     grid_x, grid_y = np.meshgrid(values, values)  # grid_x[j, i] = values[i], grid_y[j, i] = values[j]
     params = np.tile(theta, (values.size**2, 1))
     params[:, horizontal] = grid_x.ravel()
@@ -139,26 +134,29 @@ def reward_slice(
     num_episodes=NUM_EPISODES,
     seed=SEED,
     batched=True,
+    progress=True,
 ):
     """The slice of g(θ) through ``theta`` in which coordinates ``axes`` (horizontal, vertical) vary.
 
     Both vary over ``grid_size`` evenly spaced values in ``value_range``; the other two stay at
-    ``theta``'s. Each cell is the mean total reward of ``num_episodes`` episodes from the start
-    states of ``hwlib.cartpole.episode_seeds(num_episodes, seed)``, the same for every cell.
-    Deterministic: the same arguments give the same slice. Returns a ``RewardSlice``.
+    ``theta``'s. Each cell is the mean total reward of ``num_episodes`` episodes of your
+    ``CartPoleLinearPolicy`` from the start states of ``hwlib.cartpole.episode_seeds(num_episodes,
+    seed)``, the same for every cell. Deterministic: the same arguments give the same slice.
+    ``progress``: show a progress bar in the notebook. Returns a ``RewardSlice``.
     """
     theta = check_params(theta, "theta").copy()  # the slice keeps its own θ
     axes = check_axes(axes)
     grid_size = check_grid_size(grid_size)
     low, high = check_value_range(value_range)
     num_episodes = check_count(num_episodes, "num_episodes")
-    seeds = episode_seeds(num_episodes, check_seed(seed, "seed"))
+    seeds = _episode_seeds(num_episodes, check_seed(seed, "seed"))
     if not isinstance(batched, bool):
         raise TypeError(f"batched must be True or False, got {batched!r}")
 
     values = np.linspace(low, high, grid_size)
-    params = slice_params(theta, axes, values)
-    rewards = run_episodes(np.repeat(params, num_episodes, axis=0), np.tile(seeds, len(params)), batched=batched)
+    params = _slice_params(theta, axes, values)
+    title = f"reward landscape ({grid_size} × {grid_size} cells × {num_episodes} episodes)" if progress else None
+    rewards = _play_episodes(np.repeat(params, num_episodes, axis=0), np.tile(seeds, len(params)), batched, title)
     mean_rewards = rewards.reshape(grid_size, grid_size, num_episodes).mean(axis=2)
     return RewardSlice(theta, axes, values, mean_rewards, seeds)
 
@@ -173,11 +171,6 @@ class LandscapeFrame:
     landscape: RewardSlice
     png: bytes
     caption: str
-
-
-def format_theta(theta):
-    """θ as the explorer writes it: '(0.50, -1.25, 0.00, 2.00)'."""
-    return "(" + ", ".join(f"{value + 0.0:.2f}" for value in theta) + ")"  # + 0.0: no "-0.00" for -0.0
 
 
 def landscape_caption(landscape):
@@ -210,11 +203,19 @@ def render_landscape(
     finite-difference stencil around θ (see ``plot_reward_landscape``); ``figure`` is the figure
     to redraw (a new one if None); the rest goes to ``reward_slice``. Returns a ``LandscapeFrame``.
     """
-    from hwlib.plots.landscape import figure_png, plot_reward_landscape  # (hwlib.plots.landscape imports this module)
-
-    landscape = reward_slice(theta, axes, grid_size, value_range, num_episodes, seed)
+    landscape = reward_slice(theta, axes, grid_size, value_range, num_episodes, seed, progress=False)
     figure = plot_reward_landscape(landscape, path=path, fd_step=fd_step, figure=figure)
     return LandscapeFrame(landscape, figure_png(figure), landscape_caption(landscape))
+
+
+def status_line(theta, source, received, clock=None):
+    """The explorer's status line: the θ on show and where it came from, e.g. 'θ = (0.10, ...) received
+    from the slider panel at 14:03:05 (θ number 3 received)'; before any, the θ it started with."""
+    if received == 0:
+        return f"Slice through θ = {format_theta(theta)}. The slider panel's button sends its θ here."
+    origin = f" from {source}" if source else ""
+    when = f" at {clock}" if clock else ""
+    return f"<b>Received θ = {format_theta(theta)}{origin}{when}</b> (θ number {received} received)."
 
 
 class LandscapeExplorer:
@@ -222,7 +223,7 @@ class LandscapeExplorer:
 
     Two dropdowns choose the horizontal and vertical coordinates (choosing the one the other
     dropdown shows swaps them); ``set_params(theta)`` moves the slice to another θ (the slider
-    panel's send button calls it). Redraws never overlap: while one runs, a new request only
+    panel's button calls ``from_panel``, which says so in the status line). Redraws never overlap: while one runs, a new request only
     replaces the one waiting, and the running redraw picks up the newest when it finishes, so
     the last request is always the one left on show. ``path``, ``fd_step`` and the slice
     options are those of ``render_landscape``.
@@ -239,9 +240,7 @@ class LandscapeExplorer:
         num_episodes=NUM_EPISODES,
         seed=SEED,
     ):
-        from hwlib.plots.landscape import new_landscape_figure
-
-        # Everything is checked here, at the door, so that nothing fails later inside a widget callback.
+        # Everything is checked here, before the first drawing, so that nothing fails later inside a widget callback.
         self._theta = check_params(theta, "theta").copy()
         axes = check_axes(axes)
         self.path = None if path is None else check_path(path)
@@ -266,9 +265,13 @@ class LandscapeExplorer:
         self.image.add_class("hwlib-landscape")
         self.caption = widgets.HTML()
         self.caption.add_class("hwlib-landscape-caption")
+        self.status = widgets.HTML()  # which θ is on show and where it came from
+        self.status.add_class("hwlib-landscape-status")
+        self.received = 0  # θs received from set_params / from_panel
         self.horizontal.observe(self._on_axis_change, names="value")
         self.vertical.observe(self._on_axis_change, names="value")
-        self.widget = widgets.VBox([widgets.HBox([self.horizontal, self.vertical]), self.image, self.caption])
+        self.widget = widgets.VBox([widgets.HBox([self.horizontal, self.vertical]), self.status, self.image, self.caption])
+        self.status.value = status_line(self._theta, None, 0)
         self.redraw()
 
     @property
@@ -281,12 +284,20 @@ class LandscapeExplorer:
         """The (horizontal, vertical) coordinates the dropdowns show."""
         return self.horizontal.value, self.vertical.value
 
-    def set_params(self, theta):
-        """Move the slice to ``theta`` (4 finite numbers) and redraw."""
+    def set_params(self, theta, source=None):
+        """Move the slice to ``theta`` (4 finite numbers) and redraw; the status line names ``source``
+        (e.g. "the slider panel") and the time it arrived."""
         theta = check_params(theta, "theta").copy()  # the caller may change its array later
         with self._lock:
             self._theta = theta
+            self.received += 1
+            received = self.received
+        self.status.value = status_line(theta, source, received, time.strftime("%H:%M:%S"))
         self.redraw()
+
+    def from_panel(self, theta):
+        """The slider panel's button: ``set_params(theta, source="the slider panel")``."""
+        self.set_params(theta, source="the slider panel")
 
     def set_axes(self, axes):
         """Choose the (horizontal, vertical) coordinates and redraw once."""
@@ -321,7 +332,7 @@ class LandscapeExplorer:
         except Exception as error:
             with self._lock:
                 self._drawing = False
-            self.caption.value = f"could not draw the slice: {html.escape(str(error))}"
+            self.caption.value = "could not draw the slice: " + "<br>".join(html.escape(line) for line in str(error).splitlines())
             raise
 
     def _set_dropdowns(self, horizontal, vertical):

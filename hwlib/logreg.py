@@ -24,14 +24,23 @@ averaged) gradient of equation (7), as the course's skeleton does.
 from __future__ import annotations
 
 import numbers
-import weakref
 
 import numpy as np
 
 from hwlib._checks import check_count, check_positive_number, check_seed
+from hwlib._logreg_inputs import (
+    as_finite_float_array,
+    check_features,
+    check_label_vector,
+    check_labels,
+    check_learning_rate,
+    check_two_class_problem,
+    checked_with_bias,
+    prepare_training_features,
+    with_bias,
+)
+from hwlib._todo import TodoNotDone  # noqa: F401 - the TODOs' starting code raises it until you write them
 from hwlib.finite_diff import scalar_finite_diff
-
-_NUMERIC_KINDS = "biuf"  # bool, signed and unsigned int, float
 
 
 def sigmoid(z):
@@ -41,7 +50,7 @@ def sigmoid(z):
     ``z``: ``sigmoid(0) = 0.5``, near 1 for large positive ``z``, near 0 for large negative ``z``
     (``sigmoid(-1000)`` is 0, not NaN).
     """
-    z = _as_finite_float_array(z, "z")
+    z = as_finite_float_array(z, "z")
     ### BEGIN SOLUTION 2.2.1
     ### HINT: 1 / (1 + e^(-z)) for every entry of z (the standard sign; the notebook explains the slip in equation (5))
     # e^(-|z|) lies in (0, 1] and cannot overflow; for z < 0, sigma(z) = e^z / (1 + e^z) = e^(-|z|) / (1 + e^(-|z|)).
@@ -54,7 +63,7 @@ def sigmoid(z):
 
 def add_bias_feature(features):
     """``features`` (N, M) with a column of ones appended: the ``X_aug`` of equation (6), shape (N, M + 1)."""
-    return _with_bias(check_features(features, "X"))
+    return with_bias(check_features(features, "X"))
 
 
 def log_likelihood(weights, features, labels):
@@ -64,7 +73,7 @@ def log_likelihood(weights, features, labels):
     Computed as ``sum(y * z - log(1 + e^z))`` with ``z`` the score of each sample, which is
     equation (7) rearranged so that no logarithm of 0 can occur.
     """
-    features_aug, labels, weights = _check_two_class_problem(weights, features, labels)
+    features_aug, labels, weights = check_two_class_problem(weights, features, labels)
     scores = features_aug @ weights
     return float(np.sum(labels * scores - np.logaddexp(0.0, scores)))
 
@@ -77,7 +86,7 @@ def log_likelihood_gradient(weights, features, labels):
     ``labels`` as floats. Returns a float64 array shaped like ``weights``: the sum over the N
     samples, not the mean.
     """
-    features_aug, labels, weights = _check_two_class_problem(weights, features, labels)
+    features_aug, labels, weights = check_two_class_problem(weights, features, labels)
     gradient = np.zeros_like(weights)
     ### BEGIN SOLUTION 2.1.1
     ### HINT: the gradient of equation (7) that you derived in 2.1.1, evaluated at weights and summed over the N samples
@@ -94,7 +103,7 @@ def gradient_check(weights, features, labels, step=1e-5):
     are zero. Around 1e-10 for a correct gradient on a small problem; a wrong sign or a missing
     term gives something of order 1.
     """
-    features_aug, labels, weights = _check_two_class_problem(weights, features, labels)
+    features_aug, labels, weights = check_two_class_problem(weights, features, labels)
     step = check_positive_number(step, "step")
     features = features_aug[:, :-1]
     analytic = log_likelihood_gradient(weights, features, labels)
@@ -139,7 +148,7 @@ class TwoClassLogisticRegressionClassifier:
         (N, n_features + 1), the samples with the constant 1 of equation (6) appended, and ``y``
         as floats. Returns nothing: the step updates ``self.weights``.
         """
-        X_aug = _checked_with_bias(X, "X", self.n_features)  # X with the constant 1 of equation (6) appended
+        X_aug = checked_with_bias(X, "X", self.n_features)  # X with the constant 1 of equation (6) appended
         y = check_labels(y, "y", 2, len(X_aug)).astype(np.float64)  # 0.0 and 1.0
         learning_rate = check_learning_rate(learning_rate)
         ### BEGIN SOLUTION 2.2.3
@@ -154,7 +163,7 @@ class TwoClassLogisticRegressionClassifier:
 
         Returns the training accuracy before the first step and after each step, shape (n_iters + 1,).
         """
-        X, X_aug = _prepare_training_features(X, self.n_features)  # checked once here, for every step below
+        X, X_aug = prepare_training_features(X, self.n_features)  # checked once here, for every step below
         y = check_labels(y, "y", 2, len(X))
         learning_rate = check_learning_rate(learning_rate)
         n_iters = check_count(n_iters, "n_iters")
@@ -196,7 +205,7 @@ class MultiClassLogisticRegressionClassifier:
 
     def decision_function(self, X):
         """The score of every class's classifier for every sample, shape (N, n_classes)."""
-        return _checked_with_bias(X, "X", self.n_features) @ self.weights
+        return checked_with_bias(X, "X", self.n_features) @ self.weights
 
     def predict_prob(self, X):
         """P(class c | x) of each one-vs-rest classifier, shape (N, n_classes); rows need not sum to 1."""
@@ -218,7 +227,7 @@ class MultiClassLogisticRegressionClassifier:
         iteration every class's classifier takes one gradient-ascent step, on its own two-class
         labels. Returns the training accuracy before the first iteration and after each, shape (n_iters + 1,).
         """
-        X, X_aug = _prepare_training_features(X, self.n_features)  # checked once here, for every step below
+        X, X_aug = prepare_training_features(X, self.n_features)  # checked once here, for every step below
         y = check_labels(y, "y", self.n_classes, len(X))  # int class labels 0..n_classes-1
         learning_rate = check_learning_rate(learning_rate)
         n_iters = check_count(n_iters, "n_iters")
@@ -239,7 +248,7 @@ class MultiClassLogisticRegressionClassifier:
 
 def first_iteration_above(accuracies, threshold=0.99):
     """The first t with ``accuracies[t] > threshold`` (t counts updates), or None if never."""
-    accuracies = _as_finite_float_array(accuracies, "accuracies")
+    accuracies = as_finite_float_array(accuracies, "accuracies")
     if accuracies.ndim != 1 or accuracies.size == 0:
         raise ValueError(f"accuracies must be a non-empty 1-d array, got shape {accuracies.shape}")
     if isinstance(threshold, bool) or not isinstance(threshold, numbers.Real) or not 0 <= threshold <= 1:
@@ -250,8 +259,8 @@ def first_iteration_above(accuracies, threshold=0.99):
 
 def accuracy(y_true, y_pred):
     """The fraction of positions where ``y_pred`` equals ``y_true`` (two 1-d integer label arrays of equal length)."""
-    y_true = _check_label_vector(y_true, "y_true")
-    y_pred = _check_label_vector(y_pred, "y_pred", len(y_true))
+    y_true = check_label_vector(y_true, "y_true")
+    y_pred = check_label_vector(y_pred, "y_pred", len(y_true))
     return float(np.mean(y_true == y_pred))
 
 
@@ -283,7 +292,7 @@ def train_test_split(features, labels, test_fraction=0.3, seed=0):
     and both parts at least one. Returns ``(X_train, X_test, y_train, y_test)``.
     """
     features = check_features(features, "features")
-    labels = _check_label_vector(labels, "labels", len(features))
+    labels = check_label_vector(labels, "labels", len(features))
     if isinstance(test_fraction, bool) or not isinstance(test_fraction, numbers.Real) or not 0 < test_fraction < 1:
         raise ValueError(f"test_fraction must be a number strictly between 0 and 1, got {test_fraction!r}")
     seed = check_seed(seed, "seed")
@@ -295,115 +304,3 @@ def train_test_split(features, labels, test_fraction=0.3, seed=0):
     order = np.random.default_rng(seed).permutation(len(features))
     test_rows, train_rows = order[:num_test], order[num_test:]
     return features[train_rows], features[test_rows], labels[train_rows], labels[test_rows]
-
-
-# --- input checks ---------------------------------------------------------------------------
-
-
-def check_learning_rate(learning_rate):
-    return check_positive_number(learning_rate, "learning_rate")
-
-
-def check_features(features, name, n_features=None):
-    """A finite 2-d float64 array with at least one row (and ``n_features`` columns if given)."""
-    if _prepared_augmentation(features) is not None:
-        array = features  # already checked when a training loop prepared it
-    else:
-        array = _as_finite_float_array(features, name, require_2d=True)
-    if array.shape[0] == 0 or array.shape[1] == 0:
-        raise ValueError(f"{name} must have at least one row and one column, got shape {array.shape}")
-    if n_features is not None and array.shape[1] != n_features:
-        raise ValueError(f"{name} must have {n_features} columns (one per feature), got shape {array.shape}")
-    return array
-
-
-def check_labels(labels, name, n_classes, length=None):
-    """A 1-d int64 array of class indices in 0..n_classes-1 (of ``length`` entries if given)."""
-    labels = _check_label_vector(labels, name, length)
-    if labels.size and (labels.min() < 0 or labels.max() >= n_classes):
-        bad = labels[(labels < 0) | (labels >= n_classes)]
-        raise ValueError(f"{name} must hold class indices 0..{n_classes - 1}, found {np.unique(bad)[:5].tolist()}")
-    return labels
-
-
-def _check_label_vector(labels, name, length=None):
-    array = np.asarray(labels)
-    if array.dtype.kind not in _NUMERIC_KINDS:
-        raise TypeError(f"{name} must be an array of integer class labels, got dtype {array.dtype}")
-    if array.ndim != 1 or array.size == 0:
-        raise ValueError(f"{name} must be a non-empty 1-d array, got shape {array.shape}")
-    if length is not None and array.size != length:
-        raise ValueError(f"{name} must have {length} entries, one per sample, got {array.size}")
-    if array.dtype.kind == "f":
-        if not np.all(np.isfinite(array)) or np.any(array != np.round(array)):
-            raise ValueError(f"{name} must hold whole-number class labels, found non-integer or non-finite values")
-    return array.astype(np.int64)
-
-
-def _check_two_class_problem(weights, features, labels):
-    features_aug = _checked_with_bias(features, "features")
-    features = features_aug[:, :-1]
-    weights = _as_finite_float_array(weights, "weights")
-    if weights.shape != (features.shape[1] + 1,):
-        raise ValueError(
-            f"weights must have shape ({features.shape[1] + 1},), one per feature plus the bias, got shape {weights.shape}"
-        )
-    labels = check_labels(labels, "labels", 2, len(features)).astype(np.float64)
-    return features_aug, labels, weights
-
-
-def _as_finite_float_array(value, name, require_2d=False):
-    array = np.asarray(value)
-    if array.dtype.kind not in _NUMERIC_KINDS:
-        raise TypeError(f"{name} must be an array of real numbers, got dtype {array.dtype}")
-    if require_2d and array.ndim != 2:
-        raise ValueError(f"{name} must be a 2-d array (samples x features), got shape {array.shape}")
-    array = array.astype(np.float64, copy=False)
-    num_bad = array.size - np.count_nonzero(np.isfinite(array))
-    if num_bad:
-        raise ValueError(f"{name} must hold only finite numbers, found {num_bad} NaN or infinite entries")
-    return array
-
-
-def _with_bias(features):
-    return np.hstack([features, np.ones((features.shape[0], 1))])
-
-
-def _checked_with_bias(features, name, n_features=None):
-    """``features`` checked at the door (``check_features``), with the constant-1 column appended."""
-    features = check_features(features, name, n_features)
-    augmented = _prepared_augmentation(features)
-    return _with_bias(features) if augmented is None else augmented
-
-
-# Training calls the two-class step C x n_iters times on the same samples (700 times in the
-# notebook). Copying the samples with their constant-1 column at every step costs several times
-# more than the step itself, so a training loop prepares them once, as a read-only X_aug, and
-# hands the step the read-only view ``X_aug[:, :-1]``; the door checks recognise that view and
-# reuse its check and its X_aug. Any other array is checked and copied as usual.
-_PREPARED = weakref.WeakValueDictionary()  # id(X_aug) -> X_aug, for X_aug built by a training loop
-
-
-def _prepare_training_features(features, n_features):
-    """``(X, X_aug)`` for a training loop: ``features`` checked once, ``X_aug`` built once, both read-only."""
-    features = check_features(features, "X", n_features)
-    augmented = _prepared_augmentation(features)
-    if augmented is None:
-        augmented = _with_bias(features)
-        augmented.flags.writeable = False
-        _PREPARED[id(augmented)] = augmented
-    return augmented[:, :-1], augmented
-
-
-def _prepared_augmentation(features):
-    """The read-only X_aug of which ``features`` is the feature part (a view), or None."""
-    base = getattr(features, "base", None)
-    if base is None or _PREPARED.get(id(base)) is not base or base.flags.writeable:
-        return None
-    is_feature_part = (
-        features.shape == (base.shape[0], base.shape[1] - 1)
-        and features.strides == base.strides
-        and features.ctypes.data == base.ctypes.data
-        and features.dtype == base.dtype
-    )
-    return base if is_feature_part else None

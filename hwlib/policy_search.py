@@ -13,19 +13,20 @@ episodes (``eval_params``, TODO 1.3.1); its gradient by central differences
 | ``LEARNING_RATE``       | TODO 1.3.3 | a rate with which training converges within 7 iterations |
 | start states            | shared within an iteration | every evaluation of iteration t uses the seeds of ``iteration_seed(seed, t)`` (common random numbers) |
 
-The learning-rate sweep trains 160 runs with the student's own ``train_cartpole_policy``; the
-kit plays their episodes together (``hwlib/_batch.py``), which changes no reward.
+The notebook runs your ``train_cartpole_policy`` through ``hwlib/training.py`` (one run, and the
+learning-rate sweep's 160), which plays the episodes your code asks for many at a time: the same
+rewards, much sooner.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
 
-from hwlib import _batch, settings
+from hwlib import settings
 from hwlib._checks import as_float_array, check_count, check_finite, check_params, check_positive_number, check_seed
+from hwlib._todo import TodoNotDone
 from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, CartPoleLinearPolicy, run_policy
 from hwlib.finite_diff import scalar_finite_diff
 
@@ -33,17 +34,15 @@ SEEDS_PER_ITERATION = 1_000  # iteration t of a run with seed s evaluates on see
 SEEDS_PER_RUN = 1_000_000
 
 
-@_batch.plays_rollouts_together
 def eval_params(params, num_rollouts=settings.NUM_ROLLOUTS, seed=0):
     """g(theta): the mean total reward of ``num_rollouts`` episodes of ``CartPoleLinearPolicy(params)``.
 
     Episode k (k = 0, ..., num_rollouts - 1) is ``run_policy(policy, seed=seed + k)``, so the same
     call always gives the same number. Returns a float.
     """
-    params = check_params(params, "params")
+    policy = CartPoleLinearPolicy(params)  # checks params: 4 finite numbers
     num_rollouts = check_count(num_rollouts, "num_rollouts")
     seed = check_seed(seed, "seed")
-    policy = CartPoleLinearPolicy(params)
     mean_reward = 0.0
     ### BEGIN SOLUTION 1.3.1
     ### HINT: play num_rollouts episodes of policy with run_policy (episode k from seed + k) and set mean_reward to the average of their total rewards
@@ -86,7 +85,7 @@ def train_cartpole_policy(
     """
     num_training_iterations = check_count(num_training_iterations, "num_training_iterations")
     num_rollouts_per_eval = check_count(num_rollouts_per_eval, "num_rollouts_per_eval")
-    learning_rate = _check_learning_rate(settings.LEARNING_RATE if learning_rate is None else learning_rate)
+    learning_rate = check_learning_rate(settings.LEARNING_RATE if learning_rate is None else learning_rate)
     fd_step = check_positive_number(fd_step, "fd_step")
     seed = check_seed(seed, "seed")
     params = np.zeros(NUM_OBSERVATIONS) if initial_params is None else check_params(initial_params, "initial_params").copy()
@@ -127,71 +126,8 @@ def converged_within(rewards, deadline=settings.CONVERGENCE_DEADLINE):
     return iteration is not None and iteration <= deadline
 
 
-@dataclass(frozen=True)
-class SweepResult:
-    """Learning-rate sweep: ``rewards[r, s]`` is the curve of rate r with seed s."""
-
-    learning_rates: np.ndarray  # (num_rates,)
-    seeds: np.ndarray  # (num_seeds,)
-    rewards: np.ndarray  # (num_rates, num_seeds, num_training_iterations + 1)
-    deadline: int
-
-    @property
-    def converged(self):
-        """(num_rates, num_seeds) booleans: converged within the deadline."""
-        return np.array([[converged_within(curve, self.deadline) for curve in row] for row in self.rewards])
-
-    @property
-    def converged_fraction(self):
-        """Fraction of seeds that converged within the deadline, one per learning rate."""
-        return self.converged.mean(axis=1)
-
-
-def learning_rate_sweep(
-    learning_rates=settings.SWEEP_LEARNING_RATES,
-    num_seeds=settings.SWEEP_NUM_SEEDS,
-    first_seed=0,
-    num_training_iterations=settings.NUM_TRAINING_ITERATIONS,
-    num_rollouts_per_eval=settings.NUM_ROLLOUTS,
-    fd_step=settings.FD_STEP,
-    deadline=settings.CONVERGENCE_DEADLINE,
-    batched=True,
-):
-    """Train from zeros with every learning rate and ``num_seeds`` seeds (``train_cartpole_policy``).
-
-    With ``batched`` (the default) all runs train side by side and their episodes are played in
-    shared batches; ``batched=False`` trains them one after another, every episode on its own
-    (the same numbers, for benchmarks). Returns a ``SweepResult``.
-    """
-    rates = np.atleast_1d(as_float_array(learning_rates, "learning_rates"))
-    if rates.ndim != 1 or rates.size == 0:
-        raise ValueError(f"learning_rates must be a non-empty 1-d array, got shape {rates.shape}")
-    for rate in rates:
-        _check_learning_rate(float(rate), "learning_rates")
-    num_seeds = check_count(num_seeds, "num_seeds")
-    first_seed = check_seed(first_seed, "first_seed")
-    options = {
-        "num_training_iterations": check_count(num_training_iterations, "num_training_iterations"),
-        "num_rollouts_per_eval": check_count(num_rollouts_per_eval, "num_rollouts_per_eval"),
-        "fd_step": check_positive_number(fd_step, "fd_step"),
-    }
-    deadline = check_count(deadline, "deadline")
-    seeds = np.arange(first_seed, first_seed + num_seeds)
-    tasks = [
-        (lambda rate=float(rate), seed=int(seed): train_cartpole_policy(learning_rate=rate, seed=seed, **options).rewards)
-        for rate in rates for seed in seeds
-    ]
-    if batched:
-        curves = _batch.run_together(tasks)
-    else:
-        with _batch.disabled():
-            curves = [task() for task in tasks]
-    rewards = np.array(curves, dtype=np.float64).reshape(len(rates), num_seeds, -1)
-    return SweepResult(rates, seeds, rewards, deadline)
-
-
-def _check_learning_rate(learning_rate, name="learning_rate"):
+def check_learning_rate(learning_rate, name="learning_rate"):
+    """A learning rate: a finite number > 0. None (``settings.LEARNING_RATE`` before TODO 1.3.3) raises ``TodoNotDone``."""
     if learning_rate is None:
-        raise ValueError(f"{name} is not set: choose one in hwlib/settings.py (LEARNING_RATE, TODO 1.3.3) "
-                         "or pass learning_rate=...")
+        raise TodoNotDone("1.3.3")
     return check_positive_number(learning_rate, name)

@@ -11,8 +11,9 @@
 | ``TRAINING_SEED``            | 0                   | 1.3.2: seed of the notebook's training run              |
 | ``CONVERGENCE_DEADLINE``     | 7                   | 1.3.3: the handout's "converge within 7 iterations"     |
 | ``LEARNING_RATE``            | TODO 1.3.3          | 1.3.3: the learning rate you chose                      |
-| ``SWEEP_LEARNING_RATES``     | 8 rates, 1e-4..1e-2 | 1.3.3: the learning-rate sweep                          |
+| ``SWEEP_LEARNING_RATES``     | 11 rates, 1e-4..1e-2 | 1.3.3: the learning-rate sweep, denser near where convergence starts and stops |
 | ``SWEEP_NUM_SEEDS``          | 20                  | 1.3.3: training runs per rate in the sweep              |
+| ``MAX_MINUTES``              | 10                  | a training run or sweep the kit expects to take longer is stopped, and it says why |
 | ``LANDSCAPE_*``              | axes (2, 3), 41 x 41 over [-2, 2], 5 episodes, seed 0 | the reward landscape's slices |
 | ``P2_LEARNING_RATE``         | 0.1                 | 2.3.2: the logistic-regression learning rate            |
 | ``P2_NUM_ITERATIONS``        | 100                 | 2.3.2: outer iterations of the one-vs-rest fit          |
@@ -21,8 +22,6 @@
 | ``TARGET_ACCURACY``          | 0.99                | 2.3.2: "training accuracy above 99% ..."                |
 | ``TARGET_ITERATIONS``        | 70                  | 2.3.2: "... in 70 iterations or less"                   |
 """
-
-import numpy as np
 
 # Problem 1
 HAND_TUNING_SEEDS = tuple(range(5))
@@ -35,10 +34,13 @@ TRAINING_SEED = 0
 CONVERGENCE_DEADLINE = 7
 ### BEGIN SOLUTION 1.3.3
 ### HINT: the learning rate you chose: one with which training from zeros converges within 7 iterations (the sweep in the notebook helps)
-LEARNING_RATE = 0.001
+LEARNING_RATE = 0.00065
 ### END SOLUTION 1.3.3
-SWEEP_LEARNING_RATES = tuple(float(rate) for rate in np.geomspace(1e-4, 1e-2, 8))
+# From 1e-4 to 1e-2, denser where the share of converging runs changes, so that every rate between
+# two rates the sweep shows at 100% converges in the 1.3.3 check (benchmarks/bench_cartpole.py --grid).
+SWEEP_LEARNING_RATES = (1e-4, 3e-4, 3.5e-4, 4e-4, 6e-4, 8e-4, 1e-3, 1.2e-3, 2e-3, 5e-3, 1e-2)
 SWEEP_NUM_SEEDS = 20
+MAX_MINUTES = 10
 LANDSCAPE_AXES = (2, 3)  # the reward landscape's default slice: theta_3 (pole angle) across, theta_4 up
 LANDSCAPE_GRID_SIZE = 41
 LANDSCAPE_VALUE_RANGE = (-2.0, 2.0)

@@ -1,31 +1,119 @@
-"""The episode batcher (hwlib/_batch.py): faster, never different."""
+"""The kit's batch engine (hwlib/_batch.py, hwlib/training.py): faster, never different, and it stops when asked."""
+
+import _thread
+import threading
+import time
 
 import numpy as np
 import pytest
 
-from hwlib import CartPoleLinearPolicy, _batch, eval_params, run_policy
-from hwlib.cartpole import play_episode
+from hwlib import CartPoleLinearPolicy, TodoNotDone, _batch, _engine, policy_search, run_policy, settings
+from hwlib.cartpole import make_env, play_episode, random_policy_rewards, run_episodes
+from hwlib.training import TooSlow, learning_rate_sweep, run_training
+
+PARAMS = [0.1, -0.3, -0.9, -0.2]
 
 
 def plain_mean(policy, seeds):
     return float(np.mean([play_episode(policy, seed=seed).total_reward for seed in seeds]))
 
 
-def test_eval_params_plays_its_rollouts_in_one_batch():
-    params = [0.1, -0.3, -0.9, -0.2]
-
-    def task():
-        value = eval_params(params, num_rollouts=6, seed=40)
-        return value, _batch.current_batcher().rounds, _batch.current_batcher().episodes_played
-
-    [(value, rounds, played)] = _batch.run_together([task])
-    assert (rounds, played) == (1, 6)
-    assert value == plain_mean(CartPoleLinearPolicy(params), range(40, 46))
+def session_replaying(**options):
+    session = _batch.Session(**options)
+    return session, session.replaying(policy_search, ("eval_params", "scalar_finite_diff"), counted="eval_params")
 
 
-def test_code_that_asks_for_other_seeds_still_gets_the_right_rewards():
+# Three ways a student writes eval_params, all correct: the docstring's seeds, seeds from a
+# generator, no seeds at all. Each is put in place of the kit's with monkeypatch.
+
+def eval_seed_plus_k(params, num_rollouts=20, seed=0):
+    policy = CartPoleLinearPolicy(params)
+    return float(np.mean([run_policy(policy, seed=seed + k) for k in range(num_rollouts)]))
+
+
+def eval_generator(params, num_rollouts=20, seed=0):
+    policy = CartPoleLinearPolicy(params)
+    draws = np.random.default_rng(seed).integers(0, 2**31 - 1, size=num_rollouts)
+    return float(np.mean([run_policy(policy, seed=int(s)) for s in draws]))
+
+
+def eval_unseeded(params, num_rollouts=20, seed=0):
+    policy = CartPoleLinearPolicy(params)
+    return float(np.mean([run_policy(policy) for _ in range(num_rollouts)]))
+
+
+STYLES = {"seed + k": eval_seed_plus_k, "generator": eval_generator, "unseeded": eval_unseeded}
+
+
+@pytest.mark.parametrize("style", ["seed + k", "generator"])
+def test_one_evaluation_is_played_in_one_batch_of_exactly_its_episodes(monkeypatch, style):
+    monkeypatch.setattr(policy_search, "eval_params", STYLES[style])
+    session, replaying = session_replaying()
+    with replaying:
+        [value] = session.run([lambda: policy_search.eval_params(PARAMS, num_rollouts=6, seed=40)])
+    assert (session.rounds, session.episodes_played) == (1, 6)  # recorded once, played once, nothing else
+    assert value == STYLES[style](PARAMS, num_rollouts=6, seed=40)  # the plain call
+    assert policy_search.eval_params is STYLES[style]  # put back after the run
+
+
+def test_unseeded_episodes_start_where_the_runs_own_env_resets_batched_or_not(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_unseeded)
+    results = {}
+    for batched in (True, False):
+        session, replaying = session_replaying(batched=batched)
+        with replaying:
+            results[batched] = session.run([lambda: policy_search.eval_params(PARAMS, num_rollouts=6)] * 2,
+                                           env_seeds=[7, 8])
+        assert session.episodes_played == 12
+    assert results[True] == results[False]
+    # Run 0's episodes: an environment reset with seed 7, then reset() five more times (gymnasium's own stream).
+    env, policy = make_env(), CartPoleLinearPolicy(PARAMS)
+    rewards = [play_episode(policy, seed=7 if k == 0 else None, env=env).total_reward for k in range(6)]
+    assert results[True][0] == float(np.mean(rewards))
+
+
+@pytest.mark.parametrize("style", list(STYLES))
+def test_the_sweep_equals_the_plain_loop_whatever_the_seeding(monkeypatch, style):
+    monkeypatch.setattr(policy_search, "eval_params", STYLES[style])
+    options = {"learning_rates": [0.0005, 0.002], "num_seeds": 2, "first_seed": 3, "num_training_iterations": 3,
+               "num_rollouts_per_eval": 5, "progress": False}
+    batched = learning_rate_sweep(**options)
+    looped = learning_rate_sweep(**options, batched=False)
+    np.testing.assert_array_equal(batched.rewards, looped.rewards)
+    assert len(np.unique(batched.rewards)) > 3  # real curves, not one value
+    np.testing.assert_array_equal(learning_rate_sweep(**options).rewards, batched.rewards)  # and every time the same
+
+
+def test_a_sweep_run_is_the_training_run_alone(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_unseeded)
+    sweep = learning_rate_sweep([0.001], num_seeds=2, first_seed=4, num_training_iterations=2, progress=False)
+    alone = run_training(2, learning_rate=0.001, seed=5, progress=False)
+    np.testing.assert_array_equal(sweep.rewards[0, 1], alone.rewards)
+
+
+def test_a_training_run_needs_two_batches_per_iteration():
+    session, replaying = session_replaying()
+    with replaying:
+        [run] = session.run([lambda: policy_search.train_cartpole_policy(3, 5, 0.001, seed=2)])
+    assert session.rounds == 1 + 2 * 3  # g(θ₀); then per iteration the 8 neighbours together, and g(θ_t+1)
+    assert session.episodes_played == (1 + 9 * 3) * 5
+    with _no_route():
+        plain = policy_search.train_cartpole_policy(3, 5, 0.001, seed=2)
+    np.testing.assert_array_equal(run.rewards, plain.rewards)
+
+
+class _no_route:
+    def __enter__(self):
+        self.previous = _engine.set_route(None)
+
+    def __exit__(self, *exc):
+        _engine.set_route(self.previous)
+
+
+def test_code_that_asks_for_episodes_one_at_a_time_still_gets_the_right_rewards():
     policy = CartPoleLinearPolicy([0.2, 0.1, -1.0, -0.3])
-    rewards = _batch.run_together([lambda seed=seed: run_policy(policy, seed=seed) for seed in (3, 99, 3, 7)])
+    session = _batch.Session()
+    rewards = session.run([lambda seed=seed: run_policy(policy, seed=seed) for seed in (3, 99, 3, 7)])
     assert rewards == [play_episode(policy, seed=seed).total_reward for seed in (3, 99, 3, 7)]
 
 
@@ -43,12 +131,34 @@ class TieBreakingPolicy(CartPoleLinearPolicy):
         return int(np.dot(self.params, obs) <= 0)
 
 
-@pytest.mark.parametrize("policy_class", [MirroredPolicy, TieBreakingPolicy])
+class FarOffPolicy(CartPoleLinearPolicy):
+    """Equation (1) near the start states, something else far out: only the wider check sees it."""
+
+    def __call__(self, obs):
+        if abs(float(obs[1])) > 1.5:
+            return 1
+        return int(np.dot(self.params, obs) < 0)
+
+
+@pytest.mark.parametrize("policy_class", [MirroredPolicy, TieBreakingPolicy, FarOffPolicy])
 def test_a_policy_that_is_not_equation_one_is_played_with_its_own_call(policy_class):
     params = [0.0, 0.0, 0.0, 0.0] if policy_class is TieBreakingPolicy else [0.3, -0.2, 0.8, 0.1]
     policy = policy_class(params)
-    batched = _batch.run_together([lambda seed=seed: run_policy(policy, seed=seed) for seed in range(4)])
+    assert not _engine.agrees_with_equation_one(policy, np.array(params, dtype=float))
+    session = _batch.Session()
+    batched = session.run([lambda seed=seed: run_policy(policy, seed=seed) for seed in range(4)])
     assert batched == [play_episode(policy, seed=seed).total_reward for seed in range(4)]
+    assert session.step_by_step == 4
+
+
+def test_random_policies_and_the_landscape_play_the_students_policy(monkeypatch):
+    monkeypatch.setattr(CartPoleLinearPolicy, "__call__", MirroredPolicy.__call__)
+    params, rewards = random_policy_rewards(30, seed=1)
+    looped = [play_episode(CartPoleLinearPolicy(p), seed=int(s)).total_reward
+              for p, s in zip(params, np.random.default_rng(2).integers(0, 2**31 - 1, size=30))]
+    np.testing.assert_array_equal(rewards, looped)
+    monkeypatch.undo()
+    assert not np.array_equal(random_policy_rewards(30, seed=1)[1], rewards)  # equation (1) plays other episodes
 
 
 def test_an_error_in_the_policy_reaches_the_caller():
@@ -57,28 +167,233 @@ def test_an_error_in_the_policy_reaches_the_caller():
             raise RuntimeError("broken policy")
 
     with pytest.raises(RuntimeError, match="broken policy"):
-        _batch.run_together([lambda: run_policy(Broken([0.0, 0.0, 0.0, 0.0]), seed=1)])
+        _batch.Session().run([lambda: run_policy(Broken([0.0, 0.0, 0.0, 0.0]), seed=1)])
 
 
-def test_many_threads_asking_for_the_same_episodes_all_get_them():
-    params = [0.1, -0.5, -0.6, -0.1]
-    results = _batch.run_together([lambda: eval_params(params, num_rollouts=5, seed=2)] * 12)
-    assert results == [plain_mean(CartPoleLinearPolicy(params), range(2, 7))] * 12
+def stub_call(self, obs):
+    raise TodoNotDone("1.1.1")
 
 
-def test_run_together_keeps_the_order_and_raises_the_first_error():
-    assert _batch.run_together([lambda value=value: value * 2 for value in range(5)]) == [0, 2, 4, 6, 8]
-    assert _batch.run_together([]) == []
+def stub_eval_params(params, num_rollouts=20, seed=0):
+    raise TodoNotDone("1.3.1")
+
+
+@pytest.mark.parametrize("work", ["sweep", "training", "random policies", "landscape", "run_episodes"])
+def test_a_todo_not_done_comes_through_the_kit_as_itself(monkeypatch, work):
+    monkeypatch.setattr(CartPoleLinearPolicy, "__call__", stub_call)
+    from hwlib.landscape import reward_slice
+
+    calls = {
+        "sweep": lambda: learning_rate_sweep([0.001, 0.002], num_seeds=2, num_training_iterations=2, progress=False),
+        "training": lambda: run_training(2, learning_rate=0.001, progress=False),
+        "random policies": lambda: random_policy_rewards(5, seed=0),
+        "landscape": lambda: reward_slice(np.zeros(4), grid_size=3, num_episodes=2, progress=False),
+        "run_episodes": lambda: run_episodes(np.zeros((2, 4)), [0, 1]),
+    }
+    with pytest.raises(TodoNotDone) as caught:
+        calls[work]()
+    assert type(caught.value) is TodoNotDone and caught.value.todo == "1.1.1"
+    assert not [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+
+
+def test_a_todo_not_done_in_one_run_of_the_sweep_stops_them_all(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", stub_eval_params)
+    with pytest.raises(TodoNotDone, match=r"TODO 1\.3\.1 is not done yet: eval_params in hwlib/policy_search\.py"):
+        learning_rate_sweep([0.001, 0.002], num_seeds=3, progress=False)
+    assert not [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+    assert policy_search.eval_params is stub_eval_params
+
+
+def test_many_runs_asking_for_the_same_episodes_all_get_them():
+    results = _batch.Session().run([lambda: policy_search.eval_params(PARAMS, num_rollouts=5, seed=2)] * 12)
+    assert results == [plain_mean(CartPoleLinearPolicy(PARAMS), range(2, 7))] * 12
+
+
+def test_runs_keep_their_order_and_the_first_error_is_raised():
+    assert _batch.Session().run([lambda value=value: value * 2 for value in range(5)]) == [0, 2, 4, 6, 8]
+    assert _batch.Session().run([]) == []
 
     def fails():
         raise ValueError("task failed")
 
     with pytest.raises(ValueError, match="task failed"):
-        _batch.run_together([lambda: 1, fails])
+        _batch.Session().run([lambda: 1, fails])
 
 
-def test_disabled_plays_every_episode_on_its_own():
-    with _batch.disabled():
-        assert _batch.current_batcher() is None
-        value = eval_params([0.1, -0.3, -0.9, -0.2], num_rollouts=3, seed=0)
-    assert value == eval_params([0.1, -0.3, -0.9, -0.2], num_rollouts=3, seed=0)
+def test_kernel_interrupt_stops_the_sweep_and_leaves_no_thread_behind():
+    # Kernel → Interrupt is a KeyboardInterrupt in the main thread; send one 1 s into a sweep.
+    timer = threading.Timer(1.0, _thread.interrupt_main)
+    started = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            learning_rate_sweep(settings.SWEEP_LEARNING_RATES, num_seeds=20, progress=False, max_minutes=None)
+    finally:
+        timer.cancel()
+    assert time.monotonic() - started < 60  # it stopped (the sweep itself takes longer); benchmarks time how soon
+    assert not [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+    assert policy_search.eval_params.__module__ == "hwlib.policy_search" and not hasattr(policy_search.eval_params, "__wrapped__")
+
+
+def test_interrupt_stops_a_run_busy_in_its_own_code():
+    def busy():
+        while True:
+            sum(range(1000))
+
+    timer = threading.Timer(0.5, _thread.interrupt_main)
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            _batch.Session().run([busy, busy])
+    finally:
+        timer.cancel()
+    time.sleep(0.2)
+    assert not [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+
+
+def test_a_sweep_that_would_take_hours_says_so_before_it_starts(monkeypatch):
+    monkeypatch.setattr(CartPoleLinearPolicy, "__call__", MirroredPolicy.__call__)
+    started = time.monotonic()
+    with pytest.raises(TooSlow, match=r"would take about .* so the kit did not start it.*step by step") as caught:
+        learning_rate_sweep(progress=False)
+    assert "equation (1) gives" in str(caught.value) and "max_minutes=None" in str(caught.value)
+    assert caught.value._render_traceback_()[1].startswith("For example CartPoleLinearPolicy(")
+    assert time.monotonic() - started < 30  # told before it runs: nothing of the sweep was played
+
+
+def eval_global_generator(params, num_rollouts=20, seed=0):
+    policy = CartPoleLinearPolicy(params)
+    return float(np.mean([run_policy(policy, seed=int(np.random.randint(0, 2**31 - 1))) for _ in range(num_rollouts)]))
+
+
+def test_code_that_draws_from_numpys_global_generator_gets_the_plain_loops_numbers(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_global_generator)
+    runs = {}
+    for batched in (True, False):
+        np.random.seed(5)
+        runs[batched] = run_training(3, 5, 0.001, seed=1, batched=batched, progress=False)
+        runs[batched, "next draw"] = np.random.randint(1000)  # the global generator moved on as in the plain loop
+    np.testing.assert_array_equal(runs[True].rewards, runs[False].rewards)
+    assert runs[True, "next draw"] == runs[False, "next draw"]
+
+
+def test_a_training_run_that_turns_out_slow_is_stopped_with_its_estimate(monkeypatch):
+    # One run is never refused before it starts (it takes minutes at worst); once it has run a few
+    # seconds, a projection beyond max_minutes stops it, naming the reason.
+    monkeypatch.setattr(CartPoleLinearPolicy, "__call__", MirroredPolicy.__call__)
+    with pytest.raises(TooSlow, match=r"This training run would take about .* so the kit stopped it after") as caught:
+        run_training(learning_rate=0.001, progress=False, max_minutes=0.01)
+    assert "step by step" in caught.value.second
+    assert policy_search.eval_params.__module__ == "hwlib.policy_search" and not hasattr(policy_search.eval_params, "__wrapped__")
+
+
+def eval_os_random(params, num_rollouts=20, seed=0):
+    import os
+
+    policy = CartPoleLinearPolicy(params)
+    return float(np.mean([run_policy(policy, seed=int.from_bytes(os.urandom(3), "little")) for _ in range(num_rollouts)]))
+
+
+def test_a_sweep_whose_episodes_cannot_be_foreseen_is_stopped_when_it_would_take_too_long(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_os_random)
+    with pytest.raises(TooSlow, match=r"This learning-rate sweep would take about") as caught:
+        learning_rate_sweep([0.001, 0.002], num_seeds=10, progress=False, max_minutes=0.01)
+    assert "one at a time" in caught.value.second
+    assert not [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+
+
+class counting:
+    """eval_params that counts how often its code runs."""
+
+    def __init__(self, function):
+        self.function, self.calls = function, 0
+        self.__signature__ = __import__("inspect").signature(function)
+
+    def __call__(self, *args, **kwargs):
+        self.calls += 1
+        return self.function(*args, **kwargs)
+
+
+@pytest.mark.parametrize("style", ["seed + k", "generator"])
+def test_a_run_whose_seeds_follow_its_arguments_is_foreseen_not_recorded_twice(monkeypatch, style):
+    student = counting(STYLES[style])
+    monkeypatch.setattr(policy_search, "eval_params", student)
+    run = run_training(4, 5, 0.001, seed=3, progress=False)
+    evaluations = 1 + 9 * 4
+    assert student.calls < 1.5 * evaluations  # recorded then replayed every time would be 2x
+    monkeypatch.setattr(policy_search, "eval_params", STYLES[style])
+    with _no_route():
+        plain = policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)
+    np.testing.assert_array_equal(run.rewards, plain.rewards)
+
+
+def eval_seeds_from_params(params, num_rollouts=20, seed=0):
+    """Correct enough, but its seeds depend on the parameters too: foreseeing them goes wrong once."""
+    policy = CartPoleLinearPolicy(params)
+    shift = int(abs(float(np.sum(params))) * 1000) % 7
+    return float(np.mean([run_policy(policy, seed=seed + shift + k) for k in range(num_rollouts)]))
+
+
+def test_a_wrong_foresight_starts_the_call_again_and_changes_no_number(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_seeds_from_params)
+    session, replaying = session_replaying()
+    with replaying:
+        [run] = session.run([lambda: policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)])
+    assert session.runs[0].memory.refuted
+    with _no_route():
+        plain = policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)
+    np.testing.assert_array_equal(run.rewards, plain.rewards)
+    np.testing.assert_array_equal(run.params_history, plain.params_history)
+
+
+def test_unseeded_code_is_foreseen_from_the_runs_own_env(monkeypatch):
+    student = counting(eval_unseeded)
+    monkeypatch.setattr(policy_search, "eval_params", student)
+    session, replaying = session_replaying()
+    with replaying:
+        [run] = session.run([lambda: policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)], env_seeds=[3])
+    assert not session.runs[0].memory.refuted and student.calls < 1.5 * (1 + 9 * 4)
+    assert session.episodes_played == (1 + 9 * 4) * 5  # nothing foreseen that was not asked for
+    looped = run_training(4, 5, 0.001, seed=3, batched=False, progress=False)
+    np.testing.assert_array_equal(run.rewards, looped.rewards)
+
+
+def test_unseeded_episodes_of_a_policy_played_step_by_step_equal_the_plain_loop(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_unseeded)
+    monkeypatch.setattr(CartPoleLinearPolicy, "__call__", MirroredPolicy.__call__)
+    options = {"learning_rates": [0.0005, 0.002], "num_seeds": 2, "num_training_iterations": 2,
+               "num_rollouts_per_eval": 4, "progress": False}
+    batched, looped = learning_rate_sweep(**options), learning_rate_sweep(**options, batched=False)
+    np.testing.assert_array_equal(batched.rewards, looped.rewards)
+    assert len(np.unique(batched.rewards)) > 3
+
+
+def eval_unseeded_until_enough(params, num_rollouts=20, seed=0):
+    """Correct, unseeded, and it stops early once it has seen enough reward: its recording pass
+    (placeholder rewards) asks for more starts than its real pass uses."""
+    policy = CartPoleLinearPolicy(params)
+    rewards = []
+    while len(rewards) < num_rollouts:
+        rewards.append(run_policy(policy))
+        if sum(rewards) >= 1000:
+            break
+    return float(np.mean(rewards))
+
+
+def test_unseeded_starts_a_call_did_not_use_go_back_to_the_runs_env(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_unseeded_until_enough)
+    kit = run_training(4, 5, 0.002, seed=3, progress=False)
+    looped = run_training(4, 5, 0.002, seed=3, batched=False, progress=False)
+    assert any(reward >= 200 for reward in looped.rewards)  # the early stop is taken
+    np.testing.assert_array_equal(kit.rewards, looped.rewards)
+    np.testing.assert_array_equal(kit.params_history, looped.params_history)
+
+
+def test_each_unseeded_start_is_drawn_from_the_runs_env_once(monkeypatch):
+    from gymnasium.envs.classic_control.cartpole import CartPoleEnv
+
+    resets, reset = [], CartPoleEnv.reset
+    monkeypatch.setattr(CartPoleEnv, "reset", lambda self, *a, **k: resets.append(1) or reset(self, *a, **k))
+    monkeypatch.setattr(policy_search, "eval_params", eval_unseeded)
+    run_training(3, 5, 0.001, seed=3, progress=False)
+    assert len(resets) == (1 + 9 * 3) * 5  # one per episode: recording and real pass share them

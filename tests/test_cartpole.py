@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 from hwlib import CartPoleLinearPolicy, play_episode, random_policy_rewards, run_episodes, run_policy
+from hwlib._engine import batch_actions
 from hwlib.cartpole import (
     ALWAYS_LEFT_PARAMS,
     ALWAYS_RIGHT_PARAMS,
-    batch_actions,
     episode_seeds,
     sample_random_params,
     start_states,
@@ -148,3 +148,32 @@ def test_compacting_the_batch_keeps_every_reward(balancing_params):
     looped = run_episodes(params[::7], seeds[::7], batched=False)
     np.testing.assert_array_equal(batched[::7], looped)
     assert np.all(batched[:100] == 500)
+
+
+def gymnasium_vector_rewards(params, seeds):
+    """The reference for the batch engine: gymnasium's own vectorised CartPole, stepped until every
+    episode has ended, each started where reset(seed=...) starts a single environment."""
+    env = gym.make_vec("CartPole-v1", num_envs=len(params), vectorization_mode="vector_entry_point")
+    env.reset(seed=0)
+    env.unwrapped.state = start_states(seeds).T.copy()
+    observations = env.unwrapped.state.T.astype(np.float32)
+    rewards, running = np.zeros(len(params)), np.ones(len(params), dtype=bool)
+    while running.any():
+        observations, reward, terminated, truncated, _ = env.step(batch_actions(params, observations))
+        rewards += np.where(running, reward, 0.0)
+        running &= ~(terminated | truncated)
+    env.close()
+    return rewards
+
+
+@pytest.mark.todo("1.1.1")
+def test_the_batch_engine_steps_exactly_as_gymnasiums_vector_env(balancing_params):
+    from hwlib._engine import play_batch
+
+    generator = np.random.default_rng(11)
+    params = np.concatenate([np.array(balancing_params)[None, :] + generator.normal(0, 0.05, (150, 4)),
+                             generator.uniform(-1, 1, (150, 4))])
+    seeds = generator.integers(0, 2**31 - 1, size=len(params))
+    rewards = play_batch(params, seeds)
+    np.testing.assert_array_equal(rewards, gymnasium_vector_rewards(params, seeds))
+    assert 0 < np.mean(rewards == 500) < 1 and len(set(rewards.tolist())) > 20  # long and short episodes, mixed

@@ -270,6 +270,31 @@ def test_set_params_moves_the_slice_and_redraws():
     assert explorer.image.value == explorer.frame.png != before
 
 
+def test_the_status_line_shows_the_theta_the_slider_panel_sent():
+    explorer = LandscapeExplorer(THETA, **SMALL)
+    assert explorer.status.value.startswith("Slice through θ = (0.30, -0.60, -1.10, -0.70).")
+    assert explorer.status in explorer.widget.children and "hwlib-landscape-status" in explorer.status._dom_classes
+    explorer.from_panel([0.1, -0.5, 1.0, -0.5])
+    assert "Received θ = (0.10, -0.50, 1.00, -0.50) from the slider panel at " in explorer.status.value
+    assert "(θ number 1 received)" in explorer.status.value
+    explorer.from_panel([0.1, -0.5, 1.0, -0.5])  # the same θ again still shows that it arrived
+    assert "(θ number 2 received)" in explorer.status.value
+    explorer.set_params(np.zeros(4))
+    assert "Received θ = (0.00, 0.00, 0.00, 0.00) at " in explorer.status.value and "(θ number 3 received)" in explorer.status.value
+
+
+def test_the_slice_plays_the_students_policy(monkeypatch):
+    def mirrored(self, obs):
+        return int(np.dot(self.params, obs) > 0)
+
+    kit = reward_slice(THETA, **SMALL, progress=False)
+    monkeypatch.setattr(CartPoleLinearPolicy, "__call__", mirrored)
+    student = reward_slice(THETA, **SMALL, progress=False)
+    looped = reward_slice(THETA, **SMALL, batched=False, progress=False)
+    np.testing.assert_array_equal(student.mean_rewards, looped.mean_rewards)
+    assert not np.array_equal(student.mean_rewards, kit.mean_rewards)
+
+
 def test_choosing_an_axis_redraws_once_and_choosing_the_other_ones_swaps_them(monkeypatch):
     explorer = LandscapeExplorer(THETA, **SMALL)
     drawn = []

@@ -21,7 +21,7 @@ from hwlib import (
     sigmoid,
     train_test_split,
 )
-from hwlib import logreg
+from hwlib import _logreg_inputs, logreg
 
 # A correct sigmoid may warn: 1 / (1 + np.exp(-z)) at z = -1000 says "overflow encountered in exp"
 # and still returns the right 0.0. These tests judge the values the student's code returns, not
@@ -231,7 +231,7 @@ def test_fit_continues_from_the_current_weights():
     np.testing.assert_allclose(twice.weights, once.weights, rtol=1e-12)
 
 
-# --- the door: every argument is checked before a TODO's code runs ---------------------------
+# --- every argument is checked before a TODO's code runs -------------------------------------
 
 
 @pytest.mark.parametrize("n_features", [0, -1, 2.5, True, "3", None])
@@ -268,7 +268,7 @@ def test_fit_rejects_bad_iteration_counts(n_iters):
 
 def test_training_rejects_labels_out_of_range():
     X, y = small_problem(num_classes=3)
-    # The mistake of training a two-class model on the class labels 0..C-1 is stopped at the door.
+    # The mistake of training a two-class model on the class labels 0..C-1 is stopped by the argument checks.
     with pytest.raises(ValueError, match=r"y must hold class indices 0\.\.1, found \[2\]"):
         TwoClassLogisticRegressionClassifier(3).gradient_ascent_step(X, y, 0.1)
     with pytest.raises(ValueError, match=r"y must hold class indices 0\.\.1, found \[2\]"):
@@ -331,17 +331,17 @@ def test_predictions_reject_non_numeric_features():
 
 def test_a_training_loop_checks_its_samples_once_and_trusts_only_its_own_copy():
     X, _ = small_problem()
-    view, X_aug = logreg._prepare_training_features(X, 3)
+    view, X_aug = _logreg_inputs.prepare_training_features(X, 3)
     np.testing.assert_array_equal(X_aug, add_bias_feature(X))
     assert not view.flags.writeable and not X_aug.flags.writeable
-    assert logreg._checked_with_bias(view, "X", 3) is X_aug  # no second check, no second copy
-    assert logreg._prepare_training_features(view, 3)[1] is X_aug
-    assert logreg._checked_with_bias(X, "X", 3) is not X_aug  # the caller's own array: checked and copied
-    assert logreg._checked_with_bias(view[:5], "X", 3).shape == (5, 4)  # a part of it is not the prepared matrix
+    assert _logreg_inputs.checked_with_bias(view, "X", 3) is X_aug  # no second check, no second copy
+    assert _logreg_inputs.prepare_training_features(view, 3)[1] is X_aug
+    assert _logreg_inputs.checked_with_bias(X, "X", 3) is not X_aug  # the caller's own array: checked and copied
+    assert _logreg_inputs.checked_with_bias(view[:5], "X", 3).shape == (5, 4)  # a part of it is not the prepared matrix
     with pytest.raises(ValueError, match="X must have 2 columns"):
-        logreg._checked_with_bias(view, "X", 2)
+        _logreg_inputs.checked_with_bias(view, "X", 2)
     X_aug.flags.writeable = True  # unlocked: it might change, so it is checked again
-    assert logreg._checked_with_bias(view, "X", 3) is not X_aug
+    assert _logreg_inputs.checked_with_bias(view, "X", 3) is not X_aug
 
 
 # --- 2.1.1 the gradient, and the gradient check ---------------------------------------------

@@ -13,7 +13,7 @@ from hwlib.food_data import COURSE_FILE, FOOD_NAMES, SYNTHETIC
 from hwlib.plots import plot_learning_rate_sweep, plot_reward_histogram, plot_training_curve
 from hwlib.plots.food import plot_confusion_matrix, plot_per_class_accuracy, plot_training_accuracy
 from hwlib.plots.training import PRINT_WIDTH
-from hwlib.policy_search import SweepResult
+from hwlib.training import SweepResult
 
 
 def _line_ydata(ax):

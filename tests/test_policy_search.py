@@ -2,8 +2,9 @@ import numpy as np
 import pytest
 
 from hwlib import CartPoleLinearPolicy, eval_params, iterations_to_converge, run_policy, settings, train_cartpole_policy
-from hwlib import policy_search
-from hwlib.policy_search import converged_within, learning_rate_sweep
+from hwlib import TodoNotDone, policy_search
+from hwlib.policy_search import converged_within
+from hwlib.training import learning_rate_sweep, run_training
 
 
 @pytest.mark.todo("1.3.1")
@@ -43,7 +44,7 @@ def test_eval_params_rejects_bad_input(kwargs, message):
 
 @pytest.mark.todo("1.3.3")
 def test_training_with_the_defaults_converges_within_seven_iterations():
-    run = train_cartpole_policy(seed=settings.TRAINING_SEED)
+    run = run_training(seed=settings.TRAINING_SEED, progress=False)  # your train_cartpole_policy, as the notebook runs it
     assert run.rewards.shape == (settings.NUM_TRAINING_ITERATIONS + 1,)
     assert converged_within(run.rewards, settings.CONVERGENCE_DEADLINE)
     assert run.rewards[0] < 500  # it really learned: the start policy (zeros) is "always left"
@@ -94,7 +95,7 @@ def test_training_rejects_a_learning_rate_that_is_not_a_finite_positive_number(l
 
 def test_training_without_a_learning_rate_says_where_to_set_it(monkeypatch):
     monkeypatch.setattr(settings, "LEARNING_RATE", None)
-    with pytest.raises(ValueError, match=r"hwlib/settings\.py \(LEARNING_RATE, TODO 1\.3\.3\)"):
+    with pytest.raises(TodoNotDone, match=r"TODO 1\.3\.3 is not done yet: LEARNING_RATE in hwlib/settings\.py"):
         train_cartpole_policy(1)
 
 
@@ -154,3 +155,73 @@ def test_the_sweep_runs_are_the_separate_training_runs():
 def test_learning_rate_sweep_rejects_bad_arguments(kwargs, message):
     with pytest.raises(ValueError, match=message):
         learning_rate_sweep(**{"learning_rates": [0.02], "num_seeds": 1, **kwargs})
+
+
+def checks_made(function, *args, **kwargs):
+    """Call ``function`` and count the argument checks of hwlib/_checks.py it makes, by (check, argument
+    name); a check that another check calls is not counted again."""
+    import collections
+    import sys
+
+    import hwlib._checks
+
+    checks_file = hwlib._checks.__file__
+    counts = collections.Counter()
+
+    def profile(frame, event, arg):
+        if event == "call" and frame.f_code.co_filename == checks_file and frame.f_back.f_code.co_filename != checks_file:
+            counts[(frame.f_code.co_name, frame.f_locals.get("name"))] += 1
+
+    sys.setprofile(profile)
+    try:
+        value = function(*args, **kwargs)
+    finally:
+        sys.setprofile(None)
+    return value, counts
+
+
+@pytest.mark.todo("1.3.1")
+def test_eval_params_checks_each_argument_once():
+    params = [0.2, -0.4, -0.8, -0.1]
+    value, counts = checks_made(eval_params, params, 5, seed=11)
+    steps = round(5 * value)  # one reward per step
+    assert counts == {
+        ("check_params", "params"): 1,  # by CartPoleLinearPolicy(params), not by eval_params as well
+        ("check_count", "num_rollouts"): 1,
+        ("check_seed", "seed"): 1 + 5,  # eval_params' seed, then the seed of each run_policy call
+        ("check_observation", "obs"): steps,  # the policy's __call__, once per step
+    }
+
+
+def test_in_a_kit_run_each_pass_of_eval_params_checks_once_and_the_batch_checks_nothing_again():
+    from hwlib import _batch, _engine
+
+    params = [0.2, -0.4, -0.8, -0.1]
+    _engine.agrees_with_equation_one(CartPoleLinearPolicy(params), np.array(params))  # its once-per-__call__ check: before counting
+    session = _batch.Session()
+    with session.replaying(policy_search, ("eval_params",), counted="eval_params"):
+        [value], counts = checks_made(session.run, [lambda: policy_search.eval_params(params, 5, seed=11)])
+    assert value == eval_params(params, 5, seed=11)
+    assert counts[("check_params", "params")] == 2  # the recording pass and the real one
+    assert counts[("check_seed", "seed")] == 2 * (1 + 5)
+    assert not {check for check, _ in counts} & {"check_params_batch", "check_seeds", "check_count_batch"}
+
+
+def test_in_a_kit_training_run_each_call_of_eval_params_checks_its_params_once(monkeypatch):
+    from hwlib import _engine
+    from hwlib.training import run_training
+
+    calls, original = [], policy_search.eval_params
+
+    def counted_eval_params(params, num_rollouts=5, seed=0):
+        calls.append(seed)
+        return original(params, num_rollouts, seed)
+
+    _engine.agrees_with_equation_one(CartPoleLinearPolicy(np.zeros(4)), np.zeros(4))  # its once-per-__call__ check
+    monkeypatch.setattr(policy_search, "eval_params", counted_eval_params)
+    run, counts = checks_made(run_training, 4, 5, 0.001, seed=3, progress=False)
+    # By CartPoleLinearPolicy(params) in each call of eval_params, and once for the policy the run returns;
+    # the batch engine makes the policies of foreseen calls without checking their params again.
+    assert counts[("check_params", "params")] == len(calls) + 1
+    assert len(calls) < 2 * (1 + 9 * 4)  # most calls foreseen, not recorded first
+    assert not {check for check, _ in counts} & {"check_params_batch", "check_seeds", "check_count_batch"}

@@ -7,14 +7,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from hwlib._checks import check_positive_number
-from hwlib.cartpole import MAX_EPISODE_REWARD
-from hwlib.landscape import AXIS_LABELS, AXIS_NAMES, RewardSlice, check_path, format_theta
+from hwlib._checks import check_path, check_positive_number
+from hwlib.cartpole import MAX_EPISODE_REWARD, OBSERVATION_NAMES
 from hwlib.plots._figure import figure_png, new_figure  # noqa: F401  (figure_png is re-exported)
+
+AXIS_NAMES = ("θ₁", "θ₂", "θ₃", "θ₄")  # θ₁ is the weight on the cart position, ...
+AXIS_LABELS = tuple(f"{symbol} · {name}" for symbol, name in zip(AXIS_NAMES, OBSERVATION_NAMES))
 
 COLOUR_MAP = "viridis"
 PATH_COLOUR = "tab:red"
 MERGE_FRACTION = 0.025  # consecutive path points closer than this share of the plotted range (about one cell) share one label
+
+
+def format_theta(theta):
+    """θ as the landscape writes it: '(0.50, -1.25, 0.00, 2.00)'."""
+    return "(" + ", ".join(f"{value + 0.0:.2f}" for value in theta) + ")"  # + 0.0: no "-0.00" for -0.0
 
 
 def new_landscape_figure():
@@ -31,7 +38,7 @@ def plot_reward_landscape(landscape, path=None, fd_step=None, figure=None):
     ``fd_step`` (a number > 0) marks the points θ ± h along both axes, the finite-difference
     stencil. ``figure`` is cleared and reused if given.
     """
-    if not isinstance(landscape, RewardSlice):
+    if not all(hasattr(landscape, name) for name in ("theta", "axes", "values", "mean_rewards", "held_axes")):
         raise TypeError(f"landscape must be an hwlib.landscape.RewardSlice (from reward_slice), got {type(landscape).__name__}")
     path = None if path is None else check_path(path)
     fd_step = None if fd_step is None else check_positive_number(fd_step, "fd_step")

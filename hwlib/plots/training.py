@@ -88,10 +88,13 @@ def plot_training_curve(rewards, learning_rate=None, deadline=settings.CONVERGEN
     return figure
 
 
+LABEL_SPACING = 0.16  # decades of learning rate: a "100%" label is about this wide on the sweep's axis
+
+
 def plot_learning_rate_sweep(sweep, chosen_learning_rate=None):
     """Share of seeds converging within the deadline, per learning rate, with ``chosen_learning_rate`` marked.
 
-    ``sweep`` is an ``hwlib.policy_search.SweepResult`` or anything with the same ``learning_rates``,
+    ``sweep`` is an ``hwlib.training.SweepResult`` or anything with the same ``learning_rates``,
     ``converged_fraction``, ``seeds`` and ``deadline``.
     """
     rates = np.asarray(sweep.learning_rates, dtype=np.float64)
@@ -101,8 +104,13 @@ def plot_learning_rate_sweep(sweep, chosen_learning_rate=None):
     figure = new_figure(PRINT_WIDTH, 3.0)
     ax = figure.add_subplot()
     ax.semilogx(rates, fractions, marker="o", color="tab:blue", label=f"share of {len(sweep.seeds)} seeds")
+    previous, level = None, 0
     for rate, fraction in zip(rates, fractions):
-        ax.annotate(f"{fraction:.0%}", (rate, fraction), xytext=(0, -14 if fraction > 0.5 else 8), textcoords="offset points",
+        # Labels of rates closer than about a label's width alternate between two heights.
+        level = 1 - level if previous is not None and np.log10(rate / previous) < LABEL_SPACING else 0
+        previous = rate
+        offset = (-14 - 12 * level) if fraction > 0.5 else (8 + 12 * level)
+        ax.annotate(f"{fraction:.0%}", (rate, fraction), xytext=(0, offset), textcoords="offset points",
                     ha="center", va="center", fontsize="small",
                     bbox={"boxstyle": "round,pad=0.1", "facecolor": "white", "edgecolor": "none", "alpha": 0.85})
     if chosen_learning_rate is not None:

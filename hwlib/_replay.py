@@ -1,0 +1,303 @@
+"""Record, then replay: how a kit run learns which episodes a call of your code will ask for.
+
+Part of ``hwlib/_batch.py``'s ``Session`` (students need not read this). While a session runs,
+``Session.replaying(module, names, ...)`` puts a wrapper in place of each named function of
+``module`` (``eval_params`` and ``scalar_finite_diff`` in ``hwlib.policy_search``, where your
+training looks them up). In a run, the outermost wrapped call
+
+1. runs once with placeholder rewards (``PLACEHOLDER_REWARD`` for every episode not yet played),
+   so that every episode it asks for is written down, whatever seeds it uses; the random state
+   (the run's own environment, ``OwnEnv``, and numpy's and ``random``'s global ones while the run
+   draws from them) is put back afterwards, so that the second run asks for the same episodes
+   (the unseeded starts the first run drew are handed to the second, not drawn again);
+2. then runs for real, after those episodes were played in one batch with the other runs'.
+
+Foreseen instead of recorded: once a run's ``eval_params`` has asked for the same seeds every
+time it was called with the same other arguments (``num_rollouts``, ``seed``; at least twice,
+never otherwise), a call whose seeds are known is not run with placeholders: its episodes are
+those seeds with its parameters (for a call without seeds: the next starts of the run's own
+environment). That halves the Python time of the usual ways to write it (episode k from
+``seed + k``, seeds from ``np.random.default_rng(seed)``, no seeds). If a call then asks for
+anything else, its outermost call starts again, recorded, and the run is never foreseen again;
+the foreseen episodes it did not ask for are played that once.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import functools
+import inspect
+
+import numpy as np
+
+from hwlib.cartpole import make_env
+
+PLACEHOLDER_REWARD = 0.0  # what an episode not yet played gives while a call is being recorded
+UNSEEDED = "unseeded"  # a call that asks for its episodes without seeds: (UNSEEDED, how many)
+_CONFIRMATIONS = 2  # calls that asked again for known seeds before a run is foreseen
+
+
+class Cancelled(BaseException):
+    """Raised inside a run the kit stopped (Kernel → Interrupt, or another run failed)."""
+
+
+class GiveUpRecording(BaseException):
+    """A recording pass that asks for far too many episodes is given up (the real pass plays them)."""
+
+
+class Redo(BaseException):
+    """A foreseen call asked for an episode that was not foreseen: its outermost call starts again."""
+
+
+class RunMemory:
+    """What a run has learnt about the seeds its ``eval_params`` asks for."""
+
+    def __init__(self):
+        self.asked = None  # the episode keys the call being watched asks for, in order
+        self.seeds_of = {}  # the call's other arguments -> (policy class, seeds asked)
+        self.confirmations = 0
+        self.refuted = False
+        self.foresaw = False  # the outermost call running now was foreseen, in part or whole
+
+    def foreseeable(self):
+        return not self.refuted and self.confirmations >= _CONFIRMATIONS
+
+
+class OwnEnv:
+    """A run's own environment, where its unseeded episodes start as in the plain loop: its first
+    ``reset`` takes the run's seed, the next ones its own stream. The starts drawn for a call's
+    recording pass (or foreseen) are handed to its real pass, which asks for the same ones, so they
+    are drawn once; any left over are given back (``rewind``)."""
+
+    def __init__(self, seed):
+        self.seed, self.env, self.first = seed, None, True
+        self.drawn = None  # while recording: the starts drawn, in order
+        self.handed = collections.deque()  # drawn for the real pass of the call running now
+        self._handed_from, self._num_handed = None, 0  # the state before the first of them, and how many
+
+    def for_reset(self):
+        """The env and the seed for its next ``reset`` (the plain loop plays in it)."""
+        if self.env is None:
+            self.env = make_env()
+        seed, self.first = (self.seed if self.first else None), False
+        return self.env, seed
+
+    def next_start(self):
+        """The start state (float64 bytes) of the run's next unseeded episode."""
+        if self.handed:
+            return self.handed.popleft()
+        env, seed = self.for_reset()
+        raw = env.unwrapped  # its reset draws the start; the wrappers' reset only checks and counts
+        raw.reset(seed=seed)
+        start = np.asarray(raw.state, dtype=np.float64).tobytes()
+        if self.drawn is not None:
+            self.drawn.append(start)
+        return start
+
+    def start_drawing(self):
+        """Note the starts drawn from now on (``hand_over`` gives them to the real pass)."""
+        self.drawn, self._handed_from = [], self.state()
+
+    def hand_over(self):
+        drawn, self.drawn = self.drawn, None
+        self.handed.extend(drawn)
+        self._num_handed = len(self.handed)
+
+    def draw(self, count, hand_over):
+        """The next ``count`` starts; ``hand_over``: for the real pass that follows (not a recording)."""
+        if not hand_over:
+            return [self.next_start() for _ in range(count)]
+        self.start_drawing()
+        try:
+            return [self.next_start() for _ in range(count)]
+        finally:
+            self.hand_over()
+
+    def state(self):
+        return self.first, None if self.first or self.env is None else self.env.unwrapped.np_random.bit_generator.state
+
+    def set_state(self, state):
+        self.handed.clear()
+        self.first, generator_state = state
+        if generator_state is not None:
+            self.env.unwrapped.np_random.bit_generator.state = generator_state
+
+    def rewind(self):
+        """After a call: the starts handed to it and not asked for go back to the env."""
+        if self.handed:
+            used = self._num_handed - len(self.handed)
+            self.set_state(self._handed_from)
+            for _ in range(used):
+                self.next_start()
+
+    def close(self):
+        if self.env is not None:
+            self.env.close()
+            self.env = None
+
+
+class Replaying:
+    """The record-then-replay part of ``Session``, which defines ``_results``, ``_pending``,
+    ``batched``, ``cancelled``, ``on_round``, ``_threaded``, ``_stopped_by`` and ``_current_run``;
+    a run has ``recording``, ``recorded``, ``replaying``, ``evaluations``, ``memory`` and its
+    random state."""
+
+    @contextlib.contextmanager
+    def replaying(self, module, names, counted=None, params_argument="params"):
+        """While the session runs, ``module.<name>`` (for each of ``names``) is recorded, then
+        replayed, in the session's runs (batched only). Calls of ``counted`` (one of the names)
+        advance the progress and may be foreseen: its argument ``params_argument`` holds the
+        policy's parameters, its other arguments decide the seeds."""
+        originals = {name: getattr(module, name) for name in names}
+        for name, function in originals.items():
+            signature = inspect.signature(function) if name == counted else None
+            setattr(module, name, self._replayed(function, signature, params_argument))
+        try:
+            yield
+        finally:
+            for name, function in originals.items():
+                setattr(module, name, function)
+
+    def _replayed(self, function, signature, params_argument):
+        counted = signature is not None
+
+        @functools.wraps(function)
+        def replayed(*args, **kwargs):
+            run = self._current_run()
+            if run is None or run.session is not self:
+                return function(*args, **kwargs)
+            call = _call_key(signature, params_argument, args, kwargs) if counted and self.batched else None
+            if run.recording:  # inside an outer call's recording pass
+                if call is not None and self._foresee(run, call, run.recorded):
+                    return PLACEHOLDER_REWARD
+                return self._watched(run, call, function, args, kwargs)
+            if self.cancelled:
+                raise Cancelled()
+            if run.replaying or not self.batched:  # an outer call's recording covered this one
+                return self._real_pass(run, function, args, kwargs, call, counted)
+            state, evaluations = run.random_state(), run.evaluations
+            try:
+                if not (call is not None and self._foresee(run, call, self._pending)):
+                    self._record(run, function, args, kwargs, state)
+                return self._real_pass(run, function, args, kwargs, call, counted)
+            except Redo:
+                run.set_random_state(state)
+                run.evaluations, run.memory.refuted, run.memory.foresaw = evaluations, True, False
+                self._record(run, function, args, kwargs, state)
+                return self._real_pass(run, function, args, kwargs, call, counted)
+            finally:
+                run.memory.foresaw = False
+                run.own.rewind()
+
+        return replayed
+
+    def _record(self, run, function, args, kwargs, state):
+        """Run ``function`` once with placeholder rewards; what it asked for is played in the next round."""
+        run.recording, run.recorded = True, {}
+        run.own.start_drawing()
+        try:
+            function(*args, **kwargs)
+        except (Cancelled, KeyboardInterrupt):
+            raise
+        except BaseException:  # noqa: BLE001 - the real pass meets it again, or not
+            pass
+        finally:
+            run.recording = False
+            if run.own.drawn:  # the real pass asks for the same starts: it is handed these, not drawn again
+                after = run.own.state()
+                run.set_random_state(state)
+                run.own.set_state(after)
+                run.own.hand_over()
+            else:
+                run.own.drawn = None
+                run.set_random_state(state)
+        for key, request in run.recorded.items():
+            if key not in self._results:
+                self._pending.setdefault(key, request)
+        run.recorded = {}
+
+    def _real_pass(self, run, function, args, kwargs, call, counted):
+        run.replaying += 1
+        try:
+            value = self._watched(run, call, function, args, kwargs)
+        finally:
+            run.replaying -= 1
+        if counted:
+            run.evaluations += 1
+            if not self._threaded and self.on_round is not None:
+                try:
+                    self.on_round(self)
+                except Exception as error:  # raised by run(), outside the code of the run
+                    self._stopped_by = error
+                    raise Cancelled() from None
+        return value
+
+    def _watched(self, run, call, function, args, kwargs):
+        """Call ``function``; for a foreseeable call, note which episodes it asked for."""
+        if call is None:
+            return function(*args, **kwargs)
+        memory, outer = run.memory, run.memory.asked
+        memory.asked = []
+        try:
+            value = function(*args, **kwargs)
+            _learn(memory, call, memory.asked)
+            return value
+        finally:
+            memory.asked = outer
+
+    def _foresee(self, run, call, into):
+        """If the run is foreseeable and the seeds of ``call`` are known, write its episodes into
+        ``into`` (the recording, or the next round) and return True."""
+        arguments, params = call
+        known = run.memory.seeds_of.get(arguments)
+        if known is None or params is None or not run.memory.foreseeable():
+            return False
+        policy_class, seeds = known
+        if seeds[0] == UNSEEDED:  # the next starts of the run's own env: drawn for real while recording
+            seeds = run.own.draw(seeds[1], hand_over=into is not run.recorded)
+        data = params.tobytes()
+        for seed in seeds:
+            key = (policy_class, data, seed)
+            if key not in self._results:
+                into.setdefault(key, (None, params))  # the policy is made from the key if it must play step by step
+        run.memory.foresaw = True
+        return True
+
+
+def _learn(memory, call, asked):
+    """What a call asked for confirms, or refutes, that the run's seeds depend only on the call's
+    other arguments."""
+    arguments, params = call
+    if not asked:
+        return
+    data = None if params is None else params.tobytes()
+    if any(key[1] != data or key[0] is not asked[0][0] for key in asked):
+        memory.refuted = True  # it played other parameters than its own, or several policy classes
+        return
+    unseeded = {isinstance(key[2], bytes) for key in asked}  # a start state, not a seed: see _batch._route
+    if len(unseeded) > 1:
+        memory.refuted = True  # seeded and unseeded episodes in one call
+        return
+    seeds = (UNSEEDED, len(asked)) if True in unseeded else tuple(key[2] for key in asked)
+    known = memory.seeds_of.get(arguments)
+    if known is not None:
+        if known == (asked[0][0], seeds):
+            memory.confirmations += 1
+        else:
+            memory.refuted = True
+    memory.seeds_of[arguments] = (asked[0][0], seeds)
+
+
+def _call_key(signature, params_argument, args, kwargs):
+    """((the other arguments), params as float64 (4,) or None) of one call; None if the other arguments
+    cannot be compared (not hashable) or the call does not bind."""
+    try:
+        bound = signature.bind(*args, **kwargs)
+        bound.apply_defaults()
+        arguments = tuple((name, value) for name, value in bound.arguments.items() if name != params_argument)
+        hash(arguments)
+        params = np.asarray(bound.arguments[params_argument], dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError, KeyError):
+        return None
+    return arguments, (params if params.shape == (4,) and np.isfinite(params).all() else None)
