@@ -38,7 +38,6 @@ CELL_TIMEOUT_MS = 120_000  # one cell
 NOT_DONE = re.compile(r"^TODO \d+\.\d+\.\d+ is not done yet: ")
 # Code cells that need no TODO (by their first line): they run on day one.
 NEEDS_NO_TODO = ("%matplotlib inline", "env = cartpole.make_env()", "### BEGIN TODO 1.1.2")
-WAITING = ("from hwlib.landscape import",)  # the origin slice: until reward_slice plays the student's policy (18.4)
 
 
 @pytest.fixture(scope="module")
@@ -193,7 +192,7 @@ def test_day_one_every_cell_that_needs_a_todo_names_it_on_its_first_line(page, d
             if shown["source"].startswith(NEEDS_NO_TODO):
                 if any(line.startswith("TODO ") for line in shown["lines"]):
                     unnamed.append(f"cell {index} needs no TODO but says {shown['lines'][:2]}")
-            elif not first_line_names_a_todo(shown) and not shown["source"].startswith(WAITING):
+            elif not first_line_names_a_todo(shown):
                 unnamed.append(f"cell {index} ({shown['source'][:50]!r}) shows {shown['lines'][:3]}")
             elif shown["source"].startswith("check(") and len(shown["lines"]) > 3:
                 unnamed.append(f"check cell {index} prints {len(shown['lines'])} lines on day one")

@@ -211,9 +211,6 @@ NEEDS_NO_TODO = {
     "p1-09",  # the 1.1.2 table: its starting rows are the student's to change
     "4d5ea793", "84a85dd5", "eac8480e",  # the imports; the data; the recordings (skipped without them)
 }
-# Cells that still print numbers on day one, each waiting for another stream's change.
-WAITING = {"p1-29": "the origin slice plays the kit's own equation (1) until reward_slice plays the student's "
-                    "CartPoleLinearPolicy (issue 18.4)"}
 NOT_DONE = re.compile(r"^TODO (\d+\.\d+\.\d+) is not done yet: ")
 
 
@@ -250,8 +247,7 @@ def stepped(day_one_kit):
 
 
 @pytest.mark.parametrize(("notebook", "cell_id"), [
-    pytest.param(notebook, cell_id, marks=[pytest.mark.xfail(reason=WAITING[cell_id], strict=False)] if cell_id in WAITING else [])
-    for notebook in (P1, P2) for cell_id in code_cells(notebook)])
+    (notebook, cell_id) for notebook in (P1, P2) for cell_id in code_cells(notebook)])
 def test_day_one_every_cell_that_needs_a_todo_names_it_first(stepped, notebook, cell_id):
     from day_one import error_of, first_lines
 
