@@ -288,10 +288,10 @@ def probe_ll_gradient(args):
 @probe(rewards=(_FLOAT, (1,)), deadline=(_INT, (0,)), max_reward=(_FLOAT, (0,)), iterations=(_INT, (0,)),
        seed=(_INT, (0,)))
 def probe_train_notebook(args):
-    policy_search = _import("hwlib.policy_search")
+    training = _import("hwlib.training")  # the notebook's training cell: train_cartpole_policy, batched
     settings = _import("hwlib.settings")
     cartpole = _import("hwlib.cartpole")
-    run = policy_search.train_cartpole_policy(learning_rate=float(args["learning_rate"]))
+    run = training.run_training(learning_rate=float(args["learning_rate"]), progress=False, max_minutes=None)
     return {"rewards": np.array(run.rewards, dtype=np.float64),
             "deadline": np.int64(settings.CONVERGENCE_DEADLINE),
             "max_reward": np.float64(cartpole.MAX_EPISODE_REWARD),
