@@ -5,8 +5,9 @@ In a notebook (an IPython kernel) ``Progress`` shows an ipywidgets bar and a lin
 a script, the grader) it shows nothing. ipywidgets is a base dependency of the kit and the bar
 must be one of its widgets anyway (tqdm's notebook bar is built on it too), so no new package.
 
-nbval compares a cell's text outputs with the stored ones. The bar is displayed once, before any
-work is done, and its plain-text form (``repr``) is fixed by its title and size, never by the
+nbval compares a cell's text outputs with the stored ones. The bar is displayed once, with the
+first news of the work (a TODO not done yet that stops the work before it starts shows no bar,
+only its two lines), and its plain-text form (``repr``) is fixed by its title and size, never by the
 time or the progress: the bar changes only through the widget's state, which nbval does not
 compare. A cell that shows a bar therefore gives the same text output on every run.
 """
@@ -44,15 +45,12 @@ class Progress:
         self.started = self._drawn = None
         self.status = "running"
         self.widget = None
+        self._shown = False
         if title is not None and (in_notebook() if show is None else show):
             self.widget = _make_widget(self)
 
     def __enter__(self):
         self.started = time.perf_counter()
-        if self.widget is not None:
-            from IPython.display import display  # noqa: PLC0415
-
-            display(self.widget)
         return self
 
     def __exit__(self, kind, error, traceback):
@@ -60,6 +58,8 @@ class Progress:
             self.status, self.done = "done", self.total
         elif issubclass(kind, KeyboardInterrupt):
             self.status = "stopped by Kernel → Interrupt"
+        elif getattr(error, "todo", None) is not None and not self._shown:
+            return False  # a TODO not done yet, before any work: its two lines say it all, no bar above them
         else:
             self.status = "stopped: " + (str(error).splitlines() or [kind.__name__])[0]
         self._draw(force=True)
@@ -109,6 +109,11 @@ class Progress:
         if self.widget is None or (not force and self._drawn is not None and now - self._drawn < _MIN_INTERVAL):
             return
         self._drawn = now
+        if not self._shown:  # shown with its first news, so a TODO not done yet shows no bar at all
+            from IPython.display import display  # noqa: PLC0415
+
+            display(self.widget)
+            self._shown = True
         bar, label = self.widget.children
         bar.value = self.done / self.total
         bar.bar_style = {"running": "info", "done": "success"}.get(self.status, "danger")

@@ -51,6 +51,18 @@ def test_an_interrupt_or_an_error_shows_on_the_bar(kind, status):
     assert bar.widget.children[0].bar_style == "danger"
 
 
+def test_a_todo_not_done_before_any_work_shows_no_bar_only_its_message(shown):
+    from hwlib._todo import TodoNotDone
+
+    with pytest.raises(TodoNotDone), _progress.Progress("work", 10, None, show=True):
+        raise TodoNotDone("1.1.1")
+    assert shown == []
+    with pytest.raises(TodoNotDone), _progress.Progress("work", 10, None, show=True) as bar:
+        bar.advance(1)  # once the work has begun, the bar says where it stopped
+        raise TodoNotDone("1.3.2")
+    assert len(shown) == 1 and "stopped: TODO 1.3.2" in bar.widget.children[1].value
+
+
 def test_the_text_nbval_compares_is_fixed_by_title_and_size():
     bar = _progress.Progress("random policies", 1000, "episodes", show=True)
     before = repr(bar.widget)
