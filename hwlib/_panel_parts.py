@@ -1,7 +1,9 @@
-"""The slider panel's machinery (``hwlib/widgets.py`` uses it; students need not read this).
+"""The slider panel's parts (``hwlib/widgets.py`` builds the panel from them; students need not read this).
 
+- The sliders' grid (``slider_grid_value``, ``grid_params``) and the panel's texts (labels, tooltips,
+  ``todo_message``); the state the browser sends (``PanelState``, ``parse_frontend_state``).
 - ``PanelControls``: the panel's small front-end part (an anywidget), with its JavaScript
-  (``PANEL_ESM``) and style (``PANEL_CSS``). It draws the preset and landscape buttons, sets the
+  (``panel_controls.js``) and style (``PANEL_CSS``). It draws the preset and landscape buttons, sets the
   sliders to a preset in the browser, and sends the whole state after every action on one
   channel, numbered, so the last state the kernel receives is the state of the last action; while
   ▶ Play runs it draws the time steps over the episode's picture itself.
@@ -12,12 +14,66 @@
 from __future__ import annotations
 
 import contextlib
+import math
+import pathlib
+import re
 import threading
+from dataclasses import dataclass
 
 import anywidget
 import ipywidgets as widgets
 import traitlets
 
+from hwlib._checks import check_params, check_seed
+from hwlib.cartpole import MAX_EPISODE_REWARD, OBSERVATION_NAMES, SEED_BOUND
+
+SLIDER_MIN, SLIDER_MAX, SLIDER_STEP = -2.0, 2.0, 0.01
+SLIDER_RANGE = (SLIDER_MIN, SLIDER_MAX)
+OBSERVATION_UNITS = ("m", "m/s", "rad", "rad/s")
+SUBSCRIPTS = "₁₂₃₄"
+SLIDER_LABELS = tuple(
+    f"θ{SUBSCRIPTS[index]} · {name} [{unit}]" for index, (name, unit) in enumerate(zip(OBSERVATION_NAMES, OBSERVATION_UNITS))
+)
+
+
+def slider_grid_value(value):
+    """``value`` moved to the sliders' grid, computed exactly as the browser's slider does it.
+
+    ipywidgets 8 draws a FloatSlider with noUiSlider, which snaps a value to the grid in percent
+    of the range and sends the snapped value back to the kernel whenever it differs from the
+    model's. Values this function returns are left as they are (they are the snapped values), so
+    displaying them sends nothing back. ``value`` must lie within the sliders' range.
+    """
+    span = SLIDER_MAX - SLIDER_MIN
+    percent = (value - SLIDER_MIN) * 100 / span
+    percent_step = SLIDER_STEP * 100 / span
+    snapped = math.floor(percent / percent_step + 0.5) * percent_step  # JavaScript's Math.round
+    if snapped >= 100:
+        return SLIDER_MAX
+    return snapped * span / 100 + SLIDER_MIN
+
+
+def grid_params(params, name="params"):
+    """Four weights within the sliders' range, on the sliders' grid, as a tuple of floats."""
+    params = check_params(params, name)
+    if params.min() < SLIDER_MIN or params.max() > SLIDER_MAX:
+        raise ValueError(f"{name} must lie within the sliders' range [{SLIDER_MIN:g}, {SLIDER_MAX:g}], got {params.tolist()}")
+    return tuple(slider_grid_value(float(value)) for value in params)
+
+
+PRESET_TOOLTIPS = {
+    "always left": "θ = (0, 0, 0, 0): θ·s is never negative, so the cart is pushed left at every step",
+    "always right": "θ = (0, −1, 0, 1): once the cart is pushed right, θ·s only gets more negative, so it keeps being pushed right",
+}
+SLIDER_TOOLTIP = (
+    "Weight θ{sub} on the {name} [{unit}]. The policy pushes the cart right when "
+    "θ₁·x + θ₂·ẋ + θ₃·φ + θ₄·φ̇ < 0, otherwise left. Drag, or click the handle and use the arrow keys (0.01 per press)."
+)
+SEED_TOOLTIP = "Seed of the episode's start state, reset(seed=...): the same seed always gives the same start"
+STEP_TOOLTIP = "The time step the cart is drawn at (the grey line in the plots). Drag to move through the episode, or press ▶"
+PLAY_TOOLTIP = "Play the episode: moves the time step from 0 to the end (press again to pause)"
+REWARD_TOOLTIP = f"Total reward of the episode: +1 for every step the pole stays up, {MAX_EPISODE_REWARD} at most"
+LANDSCAPE_TOOLTIP_CONNECTED = "Mark the current θ in the reward landscape view"
 LANDSCAPE_BUTTON_LABEL = "Show θ in the landscape"
 STATUS_LINES = 2  # the status line's height, in lines of text
 LANDSCAPE_TOOLTIP_UNCONNECTED = "No landscape view is connected to this panel (connect one with panel.on_send_params)"
@@ -70,201 +126,62 @@ class LatestOnly:
             self.request()
 
 
+_ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def todo_message(error):
+    """The lines that say which TODO is not done yet, if ``error`` says so; otherwise None.
+
+    ``error`` says so when it is a ``NotImplementedError`` with a ``todo`` attribute (the kit's
+    ``TodoNotDone``). Its short message (``_render_traceback_``, what IPython shows) is used when
+    it has one, else "TODO x.y.z is not done yet: <its message>".
+    """
+    todo = getattr(error, "todo", None)
+    if not isinstance(error, NotImplementedError) or not todo:
+        return None
+    render = getattr(error, "_render_traceback_", None)
+    if callable(render):
+        try:
+            lines = [_ANSI_ESCAPE.sub("", str(line)).rstrip() for line in render()]
+        except Exception:  # noqa: BLE001 (a broken message must not break the panel: use the plain one)
+            lines = []
+        lines = [line for text in lines for line in text.splitlines() if line.strip()]
+        if lines:
+            return lines
+    detail = str(error).strip()
+    return [f"TODO {todo} is not done yet" + (f": {detail}" if detail and detail != str(todo) else "")]
+
+
+@dataclass(frozen=True)
+class PanelState:
+    """What the panel shows: the weights, the seed, and the time step (None: the episode's end)."""
+
+    params: tuple
+    seed: int
+    step: int | None = None
+    seq: int = 0  # the browser's number for this state (0: a change made in the kernel)
+
+
+def parse_frontend_state(state):
+    """The ``PanelState`` the browser sent, checked; ValueError if it is not one."""
+    if not isinstance(state, dict):
+        raise ValueError(f"the panel's state must be a dict, got {type(state).__name__}")
+    params = grid_params(state.get("params"), "state['params']")
+    seed = check_seed(state.get("seed"), "state['seed']")
+    if seed >= SEED_BOUND:
+        raise ValueError(f"state['seed'] must be below {SEED_BOUND}, got {seed}")
+    step, seq = state.get("step"), state.get("seq", 0)
+    if step is not None and (isinstance(step, bool) or not isinstance(step, int) or step < 0):
+        raise ValueError(f"state['step'] must be None or a non-negative integer, got {step!r}")
+    if isinstance(seq, bool) or not isinstance(seq, int):
+        raise ValueError(f"state['seq'] must be an integer, got {seq!r}")
+    return PanelState(params, seed, step, seq)
+
+
+
 # --- the front-end part -----------------------------------------------------------------------
 
-PANEL_ESM = r"""
-const modelId = (ref) => String(ref).replace(/^IPY_MODEL_/, "");
-// A change whose origin is the kernel arrives through the model's set_state, which holds
-// _state_lock while it sets the values; a change made in the browser does not.
-const fromKernel = (model) => model._state_lock !== null && model._state_lock !== undefined;
-
-function button(label, tooltip) {
-  const element = document.createElement("button");
-  element.className = "jupyter-widgets jupyter-button widget-button";
-  element.textContent = label;
-  element.title = tooltip;
-  return element;
-}
-
-async function render({ model, el }) {
-  const manager = model.widget_manager;
-  const controls = await Promise.all(model.get("controls").map((ref) => manager.get_model(modelId(ref))));
-  const params = controls.slice(0, 4), seed = controls[4], step = controls[5], play = controls[6];
-  // The panel's state as the browser has it: what the student did last is what it holds.
-  const local = { params: params.map((m) => m.get("value")), seed: seed.get("value"), step: null };
-  let seq = model.get("drawn");
-  let applying = false;
-  const send = () => {
-    seq += 1;
-    el.dataset.sent = String(seq);
-    model.set("state", { seq, params: [...local.params], seed: local.seed, step: local.step });
-    model.save_changes();
-  };
-  const listeners = [];
-  const listen = (control, handler) => {
-    control.on("change:value", handler);
-    listeners.push([control, handler]);
-  };
-  params.forEach((control, index) => listen(control, () => {
-    local.params[index] = control.get("value");
-    if (applying) return;
-    local.step = null;  // a new episode is shown at its end
-    if (!fromKernel(control)) send();
-  }));
-  listen(seed, () => {
-    local.seed = seed.get("value");
-    local.step = null;
-    if (!fromKernel(seed)) send();
-  });
-  listen(step, () => {
-    if (fromKernel(step)) return;  // the kernel showing a new episode's end, or an echo
-    local.step = step.get("value");
-    if (play.get("playing") && overlay.draw(local)) return;  // ▶ plays in the browser: no frame from the kernel
-    send();
-  });
-  const onPlaying = () => {
-    if (!play.get("playing") && overlay.shown) {
-      overlay.until = seq + 1;  // the kernel's own frame of the step where the play stopped replaces the overlay
-      send();
-    }
-  };
-  play.on("change:playing", onPlaying);
-
-  const presets = document.createElement("div");
-  presets.className = "hwlib-presets";
-  for (const preset of model.get("presets")) {
-    const element = button(preset.name, preset.tooltip);
-    element.addEventListener("click", () => {
-      applying = true;
-      try {
-        params.forEach((control, index) => {
-          control.set("value", preset.params[index]);
-          control.save_changes();
-        });
-      } finally {
-        applying = false;
-      }
-      local.params = [...preset.params];
-      local.step = null;
-      send();
-    });
-    presets.append(element);
-  }
-  const landscape = button("", "");
-  const icon = document.createElement("i");
-  icon.className = "fa fa-crosshairs";
-  landscape.append(icon, " " + model.get("landscape_label"));
-  landscape.addEventListener("click", () => model.send({ event: "send_params", params: [...local.params] }));
-  const showLandscape = () => {
-    landscape.disabled = !model.get("landscape_enabled");
-    landscape.title = model.get("landscape_tooltip");
-  };
-  showLandscape();
-  const overlay = playOverlay(model, el);
-  const showDrawn = () => {
-    el.dataset.drawn = String(model.get("drawn"));
-    if (overlay.until !== null && model.get("drawn") >= overlay.until) overlay.hide();
-  };
-  showDrawn();
-  model.on("change:landscape_enabled", showLandscape);
-  model.on("change:landscape_tooltip", showLandscape);
-  model.on("change:drawn", showDrawn);
-  el.classList.add("hwlib-panel-controls");
-  el.append(presets, landscape);
-  model.send({ event: "connected" });
-  return () => {
-    for (const [control, handler] of listeners) control.off("change:value", handler);
-    play.off("change:playing", onPlaying);
-    overlay.hide();
-  };
-}
-
-// While ▶ plays, the browser draws the time cursors and the cart over the episode's picture
-// without them (both from the kernel, once per episode): the kernel draws no frame per step, so
-// the play keeps its pace whatever the kernel is doing. When it stops, the kernel's frame returns.
-function playOverlay(model, el) {
-  const state = { shown: false, until: null, canvas: null, image: null, bitmap: null, data: null };
-  const load = async () => {
-    const data = model.get("overlay");
-    state.data = null;
-    state.bitmap = null;
-    const png = model.get("overlay_png");
-    if (!data || !png || !png.byteLength) return;
-    state.bitmap = await createImageBitmap(new Blob([png], { type: "image/png" }));
-    state.data = data;
-  };
-  model.on("change:overlay_png", load);
-  load();
-  const place = () => {
-    const panel = el.closest(".hwlib-slider-panel");
-    const image = panel && panel.querySelector("img.hwlib-episode");
-    if (!image) return false;
-    if (!state.canvas || state.image !== image) {
-      state.canvas?.remove();
-      state.canvas = document.createElement("canvas");
-      state.canvas.className = "hwlib-play-overlay";
-      image.insertAdjacentElement("afterend", state.canvas);
-      state.image = image;
-    }
-    const canvas = state.canvas;
-    canvas.width = image.naturalWidth || image.width;
-    canvas.height = image.naturalHeight || image.height;
-    canvas.style.left = image.offsetLeft + "px";
-    canvas.style.top = image.offsetTop + "px";
-    return true;
-  };
-  state.draw = (local) => {
-    const data = state.data;
-    if (!data || !state.bitmap || data.seed !== local.seed || data.params.some((value, i) => value !== local.params[i])) return false;
-    if (local.step === null || local.step > data.num_steps || !place()) return false;
-    const k = local.step, ctx = state.canvas.getContext("2d");
-    ctx.drawImage(state.bitmap, 0, 0);
-    ctx.strokeStyle = data.cursor.color;
-    ctx.lineWidth = data.cursor.width;
-    for (const cursor of data.cursors) {
-      ctx.beginPath();
-      ctx.moveTo(cursor.x[k], cursor.top);
-      ctx.lineTo(cursor.x[k], cursor.bottom);
-      ctx.stroke();
-    }
-    ctx.save();
-    ctx.beginPath();
-    ctx.rect(data.clip.left, data.clip.top, data.clip.width, data.clip.height);
-    ctx.clip();
-    ctx.fillStyle = data.cart.color;
-    ctx.fillRect(data.cart.left[k], data.cart.top, data.cart.width, data.cart.height);
-    ctx.strokeStyle = data.pole.color;
-    ctx.lineWidth = data.pole.width;
-    ctx.lineCap = "round";
-    ctx.beginPath();
-    ctx.moveTo(data.pole.x0[k], data.pole.y0);
-    ctx.lineTo(data.pole.x1[k], data.pole.y1[k]);
-    ctx.stroke();
-    ctx.fillStyle = data.axle.color;
-    ctx.beginPath();
-    ctx.arc(data.pole.x0[k], data.pole.y0, data.axle.radius, 0, 2 * Math.PI);
-    ctx.fill();
-    ctx.restore();
-    ctx.fillStyle = data.caption.color;
-    ctx.font = `${data.caption.size}px "DejaVu Sans", sans-serif`;
-    ctx.textAlign = "center";
-    ctx.fillText(`step ${k} of ${data.num_steps}` + (k === data.num_steps ? `: ${data.ending}` : ""), data.caption.x, data.caption.y);
-    state.canvas.style.display = "block";
-    state.shown = true;
-    state.until = null;
-    el.dataset.frames = String(Number(el.dataset.frames || 0) + 1);
-    return true;
-  };
-  state.hide = () => {
-    if (state.canvas) state.canvas.style.display = "none";
-    state.shown = false;
-    state.until = null;
-  };
-  return state;
-}
-
-export default { render };
-"""
+PANEL_ESM = pathlib.Path(__file__).with_name("panel_controls.js")  # the JavaScript, read by anywidget
 
 PANEL_CSS = f"""
 .hwlib-slider-panel {{ position: relative; }}

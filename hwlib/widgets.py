@@ -6,25 +6,13 @@ Four sliders set the policy's weights θ₁..θ₄, a number box sets the episod
 values in and show what comes back, so the panel's logic is tested without a browser.
 
 **The panel ends on what was clicked.** The browser sends each control's changes on its own
-channel, and holds a control's next change while one is in flight (a slider dragged or moved by
-keys sends its latest value once the kernel has answered the one before), so the kernel cannot
-tell from the controls which of two changes came last: a held slider value could land after a
-preset and overwrite half of it. So the order is kept where the actions happen, in the browser.
-A small front-end part (``PanelControls``, an anywidget, in ``hwlib/_panel_parts.py``) holds the
-panel's state there:
-
-- it draws the preset buttons and sets the sliders to a preset in the browser, so a preset is
-  just the latest value of each slider, which the browser then sends last;
-- it follows every change of a slider, the seed or the time step made in the browser and sends
-  the whole state (θ, seed, time step or "the end of the episode", numbered) on one channel,
-  where the browser keeps the latest one: the last state the kernel receives is the state of
-  the last action;
-- "Show θ in the landscape" sends the θ the sliders show, with the click.
-
-The kernel draws the states it receives, and draws a change made from Python (``set_params``, a
-slider's value set in code) as before; the controls' own messages from the browser only keep
-their Python values up to date. Without that front-end part (a front end without anywidget) the
-panel falls back to drawing the controls' values.
+channel and holds a slider's next value while one is in flight, so a held value could land
+after a preset and overwrite half of it. The order is therefore kept in the browser, by a small
+front-end part (``PanelControls``, an anywidget, in ``hwlib/_panel_parts.py``): it sets the
+sliders to a preset there and sends the whole state (θ, seed, time step, numbered) after every
+action on one channel, so the last state the kernel draws is the state of the last action. A
+change made from Python (``set_params``, a slider's value set in code) is drawn as before;
+without the front-end part the panel draws the controls' values.
 
 Redraws never overlap and never go stale: a change that arrives while a frame is being drawn
 (from another thread) is only noted, and the drawing thread draws once more, with the latest
@@ -35,9 +23,8 @@ moving parts and where they go at every step (``EpisodeView.overlay``) once, and
 the cursor and the cart over it, 20 frames per second whatever the kernel is doing; when the play
 stops, the kernel's own frame of that step replaces it.
 
-**The layout never moves.** Every part has a fixed size: the status line (reward and why the
-episode ended, or what went wrong) has room for two lines and clips the rest (its tooltip holds
-all of it), and the picture keeps its size while an error is shown.
+**The layout never moves.** Every part has a fixed size: the status line (reward and why the episode
+ended, or what went wrong) has two lines and clips the rest (its tooltip holds all of it).
 
 If the policy raises ``NotImplementedError`` with a ``todo`` attribute (``hwlib._todo.TodoNotDone``,
 "TODO 1.1.1 is not done yet"), the status line says which TODO and what to do, in place of the
@@ -48,7 +35,6 @@ from __future__ import annotations
 
 import html
 import math
-import re
 import threading
 from dataclasses import dataclass, replace
 
@@ -65,51 +51,39 @@ from hwlib.cartpole import (
     Episode,
     play_episode,
 )
-from hwlib._panel_parts import (
+from hwlib._panel_parts import (  # the panel's texts, the sliders' grid, the front-end part
     LANDSCAPE_BUTTON_LABEL,
+    LANDSCAPE_TOOLTIP_CONNECTED,
     LANDSCAPE_TOOLTIP_UNCONNECTED,
+    OBSERVATION_UNITS,
+    PLAY_TOOLTIP,
+    PRESET_TOOLTIPS,
+    REWARD_TOOLTIP,
+    SEED_TOOLTIP,
+    SLIDER_LABELS,
+    SLIDER_MAX,
+    SLIDER_MIN,
+    SLIDER_RANGE,
+    SLIDER_STEP,
+    SLIDER_TOOLTIP,
     STATUS_LINES,
+    STEP_TOOLTIP,
+    SUBSCRIPTS,
+    grid_params,
     LatestOnly,
     PanelControls,
+    PanelState,
+    parse_frontend_state,
+    slider_grid_value,
+    todo_message,
 )
 from hwlib.plots.cartpole import EpisodeView, how_it_ended, message_png
 
-SLIDER_MIN, SLIDER_MAX, SLIDER_STEP = -2.0, 2.0, 0.01
-SLIDER_RANGE = (SLIDER_MIN, SLIDER_MAX)
-OBSERVATION_UNITS = ("m", "m/s", "rad", "rad/s")
-SUBSCRIPTS = "₁₂₃₄"
-SLIDER_LABELS = tuple(
-    f"θ{SUBSCRIPTS[index]} · {name} [{unit}]" for index, (name, unit) in enumerate(zip(OBSERVATION_NAMES, OBSERVATION_UNITS))
-)
 DEFAULT_SEED = 0
 PLAY_INTERVAL_MS = 50  # one animation frame every 0.05 s (20 frames per second) ...
 PLAY_FRAMES = 250  # ... and at most 250 frames per episode (a 500-step episode plays in 12.5 s)
 FIGURE_DPI, FIGURE_WIDTH, FIGURE_HEIGHT = 80, 9.0, 4.4  # the panel's picture: 720 x 352 px
 
-
-def slider_grid_value(value):
-    """``value`` moved to the sliders' grid, computed exactly as the browser's slider does it.
-
-    ipywidgets 8 draws a FloatSlider with noUiSlider, which snaps a value to the grid in percent
-    of the range and sends the snapped value back to the kernel whenever it differs from the
-    model's. Values this function returns are left as they are (they are the snapped values), so
-    displaying them sends nothing back. ``value`` must lie within the sliders' range.
-    """
-    span = SLIDER_MAX - SLIDER_MIN
-    percent = (value - SLIDER_MIN) * 100 / span
-    percent_step = SLIDER_STEP * 100 / span
-    snapped = math.floor(percent / percent_step + 0.5) * percent_step  # JavaScript's Math.round
-    if snapped >= 100:
-        return SLIDER_MAX
-    return snapped * span / 100 + SLIDER_MIN
-
-
-def grid_params(params, name="params"):
-    """Four weights within the sliders' range, on the sliders' grid, as a tuple of floats."""
-    params = check_params(params, name)
-    if params.min() < SLIDER_MIN or params.max() > SLIDER_MAX:
-        raise ValueError(f"{name} must lie within the sliders' range [{SLIDER_MIN:g}, {SLIDER_MAX:g}], got {params.tolist()}")
-    return tuple(slider_grid_value(float(value)) for value in params)
 
 
 # The two presets: neither balances the pole (finding weights that do is handout 1.1.2).
@@ -117,21 +91,8 @@ PRESETS = {
     "always left": grid_params(ALWAYS_LEFT_PARAMS),
     "always right": grid_params(ALWAYS_RIGHT_PARAMS),
 }
-PRESET_TOOLTIPS = {
-    "always left": "θ = (0, 0, 0, 0): θ·s is never negative, so the cart is pushed left at every step",
-    "always right": "θ = (0, −1, 0, 1): once the cart is pushed right, θ·s only gets more negative, so it keeps being pushed right",
-}
 DEFAULT_PARAMS = PRESETS["always left"]  # θ = 0: the panel starts from a policy that fails quickly
 
-SLIDER_TOOLTIP = (
-    "Weight θ{sub} on the {name} [{unit}]. The policy pushes the cart right when "
-    "θ₁·x + θ₂·ẋ + θ₃·φ + θ₄·φ̇ < 0, otherwise left. Drag, or click the handle and use the arrow keys (0.01 per press)."
-)
-SEED_TOOLTIP = "Seed of the episode's start state, reset(seed=...): the same seed always gives the same start"
-STEP_TOOLTIP = "The time step the cart is drawn at (the grey line in the plots). Drag to move through the episode, or press ▶"
-PLAY_TOOLTIP = "Play the episode: moves the time step from 0 to the end (press again to pause)"
-REWARD_TOOLTIP = f"Total reward of the episode: +1 for every step the pole stays up, {MAX_EPISODE_REWARD} at most"
-LANDSCAPE_TOOLTIP_CONNECTED = "Mark the current θ in the reward landscape view"
 
 
 @dataclass(frozen=True)
@@ -178,58 +139,6 @@ def render_panel(params, seed, step=None, view=None, episode=None):
     png = view.frame_png(episode, step)  # checks step
     step = episode.num_steps if step is None else int(step)
     return PanelFrame(episode, step, reward_text(episode), png)
-
-
-_ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*m")
-
-
-def todo_message(error):
-    """The lines that say which TODO is not done yet, if ``error`` says so; otherwise None.
-
-    ``error`` says so when it is a ``NotImplementedError`` with a ``todo`` attribute (the kit's
-    ``TodoNotDone``). Its short message (``_render_traceback_``, what IPython shows) is used when
-    it has one, else "TODO x.y.z is not done yet: <its message>".
-    """
-    todo = getattr(error, "todo", None)
-    if not isinstance(error, NotImplementedError) or not todo:
-        return None
-    render = getattr(error, "_render_traceback_", None)
-    if callable(render):
-        try:
-            lines = [_ANSI_ESCAPE.sub("", str(line)).rstrip() for line in render()]
-        except Exception:  # noqa: BLE001 (a broken message must not break the panel: use the plain one)
-            lines = []
-        lines = [line for text in lines for line in text.splitlines() if line.strip()]
-        if lines:
-            return lines
-    detail = str(error).strip()
-    return [f"TODO {todo} is not done yet" + (f": {detail}" if detail and detail != str(todo) else "")]
-
-
-@dataclass(frozen=True)
-class PanelState:
-    """What the panel shows: the weights, the seed, and the time step (None: the episode's end)."""
-
-    params: tuple
-    seed: int
-    step: int | None = None
-    seq: int = 0  # the browser's number for this state (0: a change made in the kernel)
-
-
-def parse_frontend_state(state):
-    """The ``PanelState`` the browser sent, checked; ValueError if it is not one."""
-    if not isinstance(state, dict):
-        raise ValueError(f"the panel's state must be a dict, got {type(state).__name__}")
-    params = grid_params(state.get("params"), "state['params']")
-    seed = check_seed(state.get("seed"), "state['seed']")
-    if seed >= SEED_BOUND:
-        raise ValueError(f"state['seed'] must be below {SEED_BOUND}, got {seed}")
-    step, seq = state.get("step"), state.get("seq", 0)
-    if step is not None and (isinstance(step, bool) or not isinstance(step, int) or step < 0):
-        raise ValueError(f"state['step'] must be None or a non-negative integer, got {step!r}")
-    if isinstance(seq, bool) or not isinstance(seq, int):
-        raise ValueError(f"state['seq'] must be an integer, got {seq!r}")
-    return PanelState(params, seed, step, seq)
 
 
 class SliderPanel:

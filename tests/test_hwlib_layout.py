@@ -8,7 +8,7 @@ KIT = Path(__file__).resolve().parents[1]
 HWLIB = KIT / "hwlib"
 TODO_BLOCK = re.compile(r"^[ \t]*### BEGIN (?:SOLUTION|TODO) \d\.\d\.\d", re.M)
 MAX_LINES = 400  # issue 16.3: "no module over about 400 lines"
-NOT_OURS = {"widgets.py"}  # the slider panel's module, owned by its own stream (issue 18.5)
+NOT_OURS = set()  # every module counts, the slider panel's too
 
 # What a student may meet above a function of theirs: the plain Python they know.
 PLAIN_DECORATORS = {"property", "staticmethod", "classmethod", "dataclass"}
