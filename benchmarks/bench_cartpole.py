@@ -11,7 +11,9 @@ the ratio.
 The sweep is measured for each way a correct ``eval_params`` may draw its episodes (episode k
 from ``seed + k`` as the docstring says, seeds from ``np.random.default_rng(seed)``, or no seed
 at all); each style is put in place of ``hwlib.policy_search.eval_params`` for its measurement.
-For the unseeded one, "identical" means: an unseeded episode of a training run starts where the
+With two cores or more, a helper process plays part of every batch while the other half of the
+sweep's runs execute their code (``hwlib/_turns.py``); ``bench_helper_process`` times the kit's
+sweep with and without it, side by side. For the unseeded one, "identical" means: an unseeded episode of a training run starts where the
 next ``reset()`` of the run's own environment (seeded once with the run's seed) starts it, in the
 plain loop as in the batched sweep. The seeding styles train on different episodes, so their
 sweeps play different amounts of physics: compare each style's ratio to its own loop.
@@ -139,6 +141,24 @@ def bench_sweep(style, function, num_loop_runs):
     return seconds, loop_total / seconds, bool(same)
 
 
+def bench_helper_process():
+    """The kit's sweep with the helper process (two halves take turns, hwlib/_turns.py) and
+    without it (one core's way: every run, then one batch), same run, same numbers."""
+    from hwlib import _turns
+
+    with_helper, with_seconds = timed(learning_rate_sweep, progress=False)
+    original = _turns.usable_cores
+    _turns.usable_cores = lambda: 1
+    try:
+        in_turn, in_turn_seconds = timed(learning_rate_sweep, progress=False)
+    finally:
+        _turns.usable_cores = original
+    same = np.array_equal(with_helper.rewards, in_turn.rewards)
+    print(f"  the kit's sweep with its helper process {with_seconds:.1f} s, in this process alone {in_turn_seconds:.1f} s "
+          f"({in_turn_seconds / with_seconds:.2f}x), identical rewards: {same}")
+    return same
+
+
 def bench_mirrored_policy():
     original = CartPoleLinearPolicy.__call__
 
@@ -255,6 +275,7 @@ def main(argv=None):
               f"{settings.NUM_TRAINING_ITERATIONS} iterations), per seeding style of eval_params:")
         for style, function in STYLES.items():
             ok &= bench_sweep(style, function, 1 if args.quick else 3)[2]
+        ok &= bench_helper_process()
     if "mirrored" not in args.skip:
         ok &= bench_mirrored_policy()
     if "interrupt" not in args.skip:

@@ -37,8 +37,9 @@ import time
 
 import numpy as np
 
-from hwlib import _engine
-from hwlib._replay import PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying, RunMemory
+from hwlib import _engine, _turns
+from hwlib._replay import (CLASS_CODES, CLASSES, PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying,
+                           RunMemory, class_code, policy_of)
 from hwlib.cartpole import CartPoleLinearPolicy, _play, make_env
 
 __all__ = ["EVALUATIONS_PER_ITERATION", "PLACEHOLDER_REWARD", "Cancelled", "Session", "current_run"]
@@ -172,25 +173,39 @@ class Session(Replaying):
         for thread in threads:
             thread.start()
         try:
-            while True:
-                for run in self.runs:
-                    if run.state == "ready":
-                        self._hand_over(run)
-                        if run.error is not None and not isinstance(run.error, Cancelled):
-                            raise run.error
-                if not any(run.state == "waiting" for run in self.runs):
-                    break
-                self.play_round()
-                for run in self.runs:
-                    if run.state == "waiting":
-                        run.state = "ready"
-                if self.on_round is not None:
-                    self.on_round(self)
+            if _turns.usable_cores() >= 2:
+                _turns.rounds_side_by_side(self)
+            else:
+                self._rounds_in_turn()
         except BaseException:
             self._stop(threads)
             raise
         for thread in threads:
             thread.join()
+
+    def go_on(self, runs):
+        """Let every ready run of ``runs`` go on until it waits or ends; raise the first error of one."""
+        for run in runs:
+            if run.state == "ready":
+                self._hand_over(run)
+                if run.error is not None and not isinstance(run.error, Cancelled):
+                    raise run.error
+
+    def round_done(self, runs):
+        for run in runs:
+            if run.state == "waiting":
+                run.state = "ready"
+        if self.on_round is not None:
+            self.on_round(self)
+
+    def _rounds_in_turn(self):
+        """Every run goes on until it waits; then their episodes are played; again."""
+        while True:
+            self.go_on(self.runs)
+            if not any(run.state == "waiting" for run in self.runs):
+                return
+            self.play_round()
+            self.round_done(self.runs)
 
     def _hand_over(self, run):
         """Let ``run``'s thread go on until it waits for episodes or ends."""
@@ -269,7 +284,8 @@ class Session(Replaying):
                 return PLACEHOLDER_REWARD
             self.episodes_played += 1
             return _play_from(policy, seed, None)
-        key = (type(policy), data, seed)
+        policy_class = type(policy)
+        key = (CLASS_CODES.get(policy_class) or class_code(policy_class), data, seed)
         if run.memory.asked is not None:
             run.memory.asked.append(key)
         result = self._results.get(key)
@@ -293,10 +309,18 @@ class Session(Replaying):
     def play_round(self):
         """Play every episode asked for or announced and not yet played, in one batch (and step by
         step those of policies that do not follow equation (1))."""
+        batch_keys, params, starts = self.take_requests()
+        self.store(batch_keys, _engine.play_batch(params, starts=starts) if batch_keys else None)
+
+    def take_requests(self):
+        """The episodes asked for and not yet played: those of policies that follow equation (1)
+        as ``(keys, params (K, 4), starts (K, 4))`` for one batch; the others are played here,
+        step by step (or get the TodoNotDone their policy's check raised)."""
         requests, self._pending = self._pending, {}
         self.rounds += 1
         results, trusted_of = self._results, self._trusted
-        batch_keys, played, made = [], [], {}
+        batch_keys, made = [], {}
+        self._played.append([])
         for key, (policy, params) in requests.items():
             if key in results:
                 continue
@@ -308,10 +332,10 @@ class Session(Replaying):
                 policy = made.get(key[:2])
                 if policy is None:
                     try:
-                        policy = made[key[:2]] = _policy_of(key[0], params)
+                        policy = made[key[:2]] = policy_of(CLASSES[key[0]], params)
                     except Exception as error:  # noqa: BLE001 - the call that asks for it meets it
                         results[key] = error
-                        played.append(key)
+                        self._played[-1].append(key)
                         continue
             if trusted is None:
                 trusted = self._is_trusted(key, policy, params)
@@ -319,12 +343,19 @@ class Session(Replaying):
                 batch_keys.append(key)
             else:  # False: step by step; or the TodoNotDone the policy's check raised
                 results[key] = self._play_step_by_step(policy, key[2]) if trusted is False else trusted
-                played.append(key)
+                self._played[-1].append(key)
+        if not batch_keys:
+            return batch_keys, None, None
+        params = np.frombuffer(b"".join([key[1] for key in batch_keys]), dtype=np.float64).reshape(-1, _SHAPE[0])
+        return batch_keys, params, _engine.starts_of([key[2] for key in batch_keys])
+
+    def store(self, batch_keys, rewards):
+        """Keep the rewards of a batch (None: nothing was batched); forget what is old."""
+        results = self._results
         if batch_keys:
-            params = np.frombuffer(b"".join([key[1] for key in batch_keys]), dtype=np.float64).reshape(-1, _SHAPE[0])
-            results.update(zip(batch_keys, _engine.play_batch(params, starts=_engine.starts_of([key[2] for key in batch_keys])).tolist()))
+            results.update(zip(batch_keys, rewards.tolist()))
             self.episodes_played += len(batch_keys)
-        self._played.append(played + batch_keys)
+            self._played[-1].extend(batch_keys)
         while len(self._played) > _KEEP_ROUNDS and len(results) > 200_000:
             for key in self._played.popleft():
                 results.pop(key, None)
@@ -358,14 +389,3 @@ def _play_from(policy, start, env):
     if isinstance(start, bytes):
         return _play(policy, None, env, start=np.frombuffer(start, dtype=np.float64)).total_reward
     return _play(policy, start, env).total_reward
-
-
-def _policy_of(policy_class, params):
-    """A policy of ``policy_class`` with the foreseen ``params`` (float64 (4,), finite: read from a
-    call of eval_params, whose CartPoleLinearPolicy(params) checks them), not checked again when
-    the class keeps the kit's ``__init__``."""
-    if policy_class.__init__ is not CartPoleLinearPolicy.__init__:
-        return policy_class(params.copy())
-    policy = object.__new__(policy_class)
-    policy.params = params.copy()
-    return policy

@@ -23,6 +23,7 @@ import threading
 import gymnasium as gym
 import numpy as np
 
+from hwlib import _physics
 from hwlib._todo import TodoNotDone
 
 ENV_ID = "CartPole-v1"
@@ -94,75 +95,16 @@ def batch_actions(params, observations):
 def play_batch(params, seeds=None, starts=None):
     """Total reward of one episode of equation (1) per row of ``params`` (float64, (K, 4)) from
     ``reset(seed=seeds[k])`` (int64, (K,)), or from the start state ``starts[k]`` (float64 (K, 4)),
-    all played at once. The caller has checked them.
-
-    The step is gymnasium's own vectorised CartPole step (``CartPoleVectorEnv.step``: the same
-    equations, constants and order of operations, the constants read from gymnasium's
-    environment), without its per-step checks and auto-reset, and in place: the rewards are those
-    of ``env.step``, bit for bit (``tests/test_cartpole.py`` compares it with gymnasium's vector
-    environment and with the one-by-one loop). An episode that has ended is still stepped (its
-    reward is kept) until a quarter of those stepped have ended; then the rest go on alone.
-    """
-    c = _physics()
+    all played at once with gymnasium's vectorised step (``hwlib/_physics.py``). The caller has
+    checked them."""
     starts = start_states(seeds) if starts is None else starts
-    x, x_dot, theta, theta_dot = (np.array(row, dtype=np.float64) for row in starts.T)  # copies, stepped in place
-    p0, p1, p2, p3 = (np.ascontiguousarray(params[:, j]) for j in range(NUM_OBSERVATIONS))
-    rewards = np.zeros(len(params))
-    rows, going, num_going, steps = np.arange(len(params)), np.ones(len(params), dtype=bool), len(params), 0
-    while num_going:
-        # Equation (1) on what env.step returns (float32), as batch_actions computes it.
-        score = p0 * x.astype(np.float32)
-        score += p1 * x_dot.astype(np.float32)
-        score += p2 * theta.astype(np.float32)
-        score += p3 * theta_dot.astype(np.float32)
-        force = np.where(score < 0, c.force_mag, -c.force_mag)
-        costheta, sintheta = np.cos(theta), np.sin(theta)
-        temp = np.square(theta_dot)  # temp = (force + polemass_length * theta_dot**2 * sintheta) / total_mass
-        temp *= c.polemass_length
-        temp *= sintheta
-        temp += force
-        temp /= c.total_mass
-        below = np.square(costheta)  # length * (4/3 - masspole * costheta**2 / total_mass)
-        below *= c.masspole
-        below /= c.total_mass
-        np.subtract(4.0 / 3.0, below, out=below)
-        below *= c.length
-        thetaacc = c.gravity * sintheta  # (gravity * sintheta - costheta * temp) / below
-        thetaacc -= costheta * temp
-        thetaacc /= below
-        xacc = c.polemass_length * thetaacc  # temp - polemass_length * thetaacc * costheta / total_mass
-        xacc *= costheta
-        xacc /= c.total_mass
-        np.subtract(temp, xacc, out=xacc)
-        x += c.tau * x_dot  # Euler: the positions move with the old velocities
-        xacc *= c.tau
-        x_dot += xacc
-        theta += c.tau * theta_dot
-        thetaacc *= c.tau
-        theta_dot += thetaacc
-        steps += 1  # +1 reward for every step, the last one included
-        if steps >= c.max_episode_steps:  # truncated
-            rewards[rows[going]] = steps
-            break
-        ended = np.abs(x) > c.x_threshold
-        ended |= np.abs(theta) > c.theta_threshold_radians
-        ended &= going
-        if ended.any():
-            rewards[rows[ended]] = steps
-            going &= ~ended
-            num_going -= int(np.count_nonzero(ended))
-            if 4 * num_going < 3 * len(rows):
-                rows, x, x_dot, theta, theta_dot = rows[going], x[going], x_dot[going], theta[going], theta_dot[going]
-                p0, p1, p2, p3 = p0[going], p1[going], p2[going], p3[going]
-                going = np.ones(len(rows), dtype=bool)
-    return rewards
+    return _physics.play(params, starts, physics())
 
 
 class _Physics:
     """CartPole's constants, as gymnasium's environment has them."""
 
-    NAMES = ("gravity", "masspole", "total_mass", "length", "polemass_length", "force_mag", "tau",
-             "theta_threshold_radians", "x_threshold")
+    NAMES = _physics.CONSTANTS[:-1]  # and max_episode_steps, from the environment's spec
 
     def __init__(self):
         env = gym.make(ENV_ID)
@@ -178,7 +120,8 @@ class _Physics:
 _PHYSICS = []
 
 
-def _physics():
+def physics():
+    """CartPole's constants (``hwlib/_physics.py``'s ``CONSTANTS``), read once from gymnasium."""
     if not _PHYSICS:
         _PHYSICS.append(_Physics())
     return _PHYSICS[0]

@@ -31,7 +31,7 @@ import inspect
 
 import numpy as np
 
-from hwlib.cartpole import make_env
+from hwlib.cartpole import CartPoleLinearPolicy, make_env
 
 PLACEHOLDER_REWARD = 0.0  # what an episode not yet played gives while a call is being recorded
 UNSEEDED = "unseeded"  # a call that asks for its episodes without seeds: (UNSEEDED, how many)
@@ -62,6 +62,30 @@ class RunMemory:
 
     def foreseeable(self):
         return not self.refuted and self.confirmations >= _CONFIRMATIONS
+
+
+_START_BOUND = 0.05  # CartPole's reset draws each of the 4 numbers of its start from U(-0.05, 0.05)
+_BLOCKS = []
+
+
+def _resets_draw_in_blocks():
+    """Whether k unseeded resets of CartPole draw what one block of k x 4 draws of U(-0.05, 0.05)
+    from its generator gives (and leave the generator in the same state): checked once, on the
+    environment itself, so that a gymnasium that draws its starts otherwise is reset one by one."""
+    if not _BLOCKS:
+        one, block = make_env().unwrapped, make_env().unwrapped
+        one.reset(seed=2026)
+        block.reset(seed=2026)
+        starts = []
+        for _ in range(3):
+            one.reset()
+            starts.append(np.asarray(one.state, dtype=np.float64))
+        drawn = block.np_random.uniform(low=-_START_BOUND, high=_START_BOUND, size=(3, 4))
+        _BLOCKS.append(np.array_equal(np.array(starts), drawn)
+                       and one.np_random.bit_generator.state == block.np_random.bit_generator.state)
+        one.close()
+        block.close()
+    return _BLOCKS[0]
 
 
 class OwnEnv:
@@ -104,13 +128,33 @@ class OwnEnv:
         self.handed.extend(drawn)
         self._num_handed = len(self.handed)
 
+    def next_starts(self, count):
+        """The starts of the run's next ``count`` unseeded episodes: those ``next_start`` would give,
+        drawn in one block from the env's generator when that is what its resets draw."""
+        if not _resets_draw_in_blocks():
+            return [self.next_start() for _ in range(count)]
+        starts = []
+        while self.handed and len(starts) < count:
+            starts.append(self.handed.popleft())
+        if len(starts) < count and (self.first or self.env is None):
+            starts.append(self.next_start())  # the first reset takes the run's seed
+        if len(starts) < count:
+            raw = self.env.unwrapped
+            block = raw.np_random.uniform(low=-_START_BOUND, high=_START_BOUND, size=(count - len(starts), 4))
+            raw.state = block[-1].copy()  # where the last of those resets leaves it
+            drawn = [row.tobytes() for row in block]
+            if self.drawn is not None:
+                self.drawn.extend(drawn)
+            starts.extend(drawn)
+        return starts
+
     def draw(self, count, hand_over):
         """The next ``count`` starts; ``hand_over``: for the real pass that follows (not a recording)."""
         if not hand_over:
-            return [self.next_start() for _ in range(count)]
+            return self.next_starts(count)
         self.start_drawing()
         try:
-            return [self.next_start() for _ in range(count)]
+            return self.next_starts(count)
         finally:
             self.hand_over()
 
@@ -128,8 +172,7 @@ class OwnEnv:
         if self.handed:
             used = self._num_handed - len(self.handed)
             self.set_state(self._handed_from)
-            for _ in range(used):
-                self.next_start()
+            self.next_starts(used)
 
     def close(self):
         if self.env is not None:
@@ -151,23 +194,23 @@ class Replaying:
         policy's parameters, its other arguments decide the seeds."""
         originals = {name: getattr(module, name) for name in names}
         for name, function in originals.items():
-            signature = inspect.signature(function) if name == counted else None
-            setattr(module, name, self._replayed(function, signature, params_argument))
+            binder = _Binder(inspect.signature(function), params_argument) if name == counted else None
+            setattr(module, name, self._replayed(function, binder))
         try:
             yield
         finally:
             for name, function in originals.items():
                 setattr(module, name, function)
 
-    def _replayed(self, function, signature, params_argument):
-        counted = signature is not None
+    def _replayed(self, function, binder):
+        counted = binder is not None
 
         @functools.wraps(function)
         def replayed(*args, **kwargs):
             run = self._current_run()
             if run is None or run.session is not self:
                 return function(*args, **kwargs)
-            call = _call_key(signature, params_argument, args, kwargs) if counted and self.batched else None
+            call = binder.call_key(args, kwargs) if counted and self.batched else None
             if run.recording:  # inside an outer call's recording pass
                 if call is not None and self._foresee(run, call, run.recorded):
                     return PLACEHOLDER_REWARD
@@ -272,7 +315,7 @@ def _learn(memory, call, asked):
     if not asked:
         return
     data = None if params is None else params.tobytes()
-    if any(key[1] != data or key[0] is not asked[0][0] for key in asked):
+    if any(key[1] != data or key[0] != asked[0][0] for key in asked):
         memory.refuted = True  # it played other parameters than its own, or several policy classes
         return
     unseeded = {isinstance(key[2], bytes) for key in asked}  # a start state, not a seed: see _batch._route
@@ -289,15 +332,69 @@ def _learn(memory, call, asked):
     memory.seeds_of[arguments] = (asked[0][0], seeds)
 
 
-def _call_key(signature, params_argument, args, kwargs):
-    """((the other arguments), params as float64 (4,) or None) of one call; None if the other arguments
-    cannot be compared (not hashable) or the call does not bind."""
-    try:
-        bound = signature.bind(*args, **kwargs)
-        bound.apply_defaults()
-        arguments = tuple((name, value) for name, value in bound.arguments.items() if name != params_argument)
-        hash(arguments)
-        params = np.asarray(bound.arguments[params_argument], dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError, KeyError):
-        return None
-    return arguments, (params if params.shape == (4,) and np.isfinite(params).all() else None)
+class _Binder:
+    """The key of a call of a counted function: ``call_key(args, kwargs)`` is ((the other
+    arguments, by name, with defaults), params as float64 (4,) or None), or None if the other
+    arguments cannot be compared (not hashable) or the call does not bind. It binds the arguments
+    itself when every parameter is a plain one (``signature.bind`` is slow for every call)."""
+
+    def __init__(self, signature, params_argument):
+        self.signature, self.params_argument = signature, params_argument
+        plain = all(parameter.kind is parameter.POSITIONAL_OR_KEYWORD for parameter in signature.parameters.values())
+        self.names = tuple(signature.parameters) if plain and params_argument in signature.parameters else None
+        self.defaults = {name: parameter.default for name, parameter in signature.parameters.items()
+                         if parameter.default is not parameter.empty}
+
+    def call_key(self, args, kwargs):
+        try:
+            values = self._bind(args, kwargs)
+            arguments = tuple((name, value) for name, value in values.items() if name != self.params_argument)
+            hash(arguments)
+            params = np.asarray(values[self.params_argument], dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError, KeyError):
+            return None
+        return arguments, (params if params.shape == (4,) and np.isfinite(params).all() else None)
+
+    def _bind(self, args, kwargs):
+        names = self.names
+        if names is None:
+            bound = self.signature.bind(*args, **kwargs)
+            bound.apply_defaults()
+            return bound.arguments
+        if len(args) > len(names):
+            raise TypeError("too many arguments")
+        values = dict(zip(names, args))
+        for name, value in kwargs.items():
+            if name in values or name not in names:
+                raise TypeError(f"unexpected argument {name!r}")
+            values[name] = value
+        if len(values) < len(names):
+            for name in names:
+                if name not in values:
+                    values[name] = self.defaults[name]  # KeyError: a required argument is missing
+        return {name: values[name] for name in names}
+
+
+# An episode's key names its policy's class by a number: a key then holds only numbers and bytes,
+# which Python's garbage collector stops tracking, so the hundreds of thousands of keys a sweep
+# keeps do not slow every collection.
+CLASSES = [None]  # number -> policy class (numbers from 1)
+CLASS_CODES = {}  # policy class -> number
+
+
+def class_code(policy_class):
+    if policy_class not in CLASS_CODES:
+        CLASS_CODES[policy_class] = len(CLASSES)
+        CLASSES.append(policy_class)
+    return CLASS_CODES[policy_class]
+
+
+def policy_of(policy_class, params):
+    """A policy of ``policy_class`` with the foreseen ``params`` (float64 (4,), finite: read from a
+    call of eval_params, whose CartPoleLinearPolicy(params) checks them), not checked again when
+    the class keeps the kit's ``__init__``."""
+    if policy_class.__init__ is not CartPoleLinearPolicy.__init__:
+        return policy_class(params.copy())
+    policy = object.__new__(policy_class)
+    policy.params = params.copy()
+    return policy

@@ -55,6 +55,14 @@ def full_points():
     return {todo: TODO_BY_ID[todo].auto for todo in AUTO_TODOS}
 
 
+def shortfall(result):
+    """What the grader said of every TODO that earned less than all its points (for a failing assert)."""
+    full = full_points()
+    short = [entry for entry in result["todos"] if entry["auto_possible"] and entry["auto_earned"] < full[entry["id"]]]
+    return "\n".join(json.dumps({key: entry.get(key) for key in ("id", "status", "auto_earned", "first_failure", "notes",
+                                                                   "checks")}, default=str)[:4000] for entry in short)
+
+
 def text_of(result):
     return render(result) + json.dumps(result)
 
@@ -66,7 +74,7 @@ def text_of(result):
 
 def test_instructor_kit_earns_every_point(grader):
     result = grader.grade(KIT)
-    assert points(result) == full_points()
+    assert points(result) == full_points(), shortfall(result)
     assert result["total"]["auto_earned"] == AUTO_POINTS == 39
     assert result["total"]["manual_possible"] == 21
     assert all(check["passed"] for entry in result["todos"] for check in entry["checks"])
@@ -89,7 +97,8 @@ def test_release_student_edition_earns_nothing_and_keeping_solutions_earns_all(g
     release.build_student_edition(KIT, tmp_path / "student")
     assert grader.grade(tmp_path / "student")["total"]["auto_earned"] == 0
     release.build_student_edition(KIT, tmp_path / "kept", keep=frozenset(TODO_BY_ID))
-    assert points(grader.grade(tmp_path / "kept")) == full_points()
+    kept = grader.grade(tmp_path / "kept")
+    assert points(kept) == full_points(), shortfall(kept)
 
 
 # --------------------------------------------------------------------------------------------
