@@ -492,7 +492,7 @@ def test_the_helper_ignores_ctrl_c_and_ends_when_the_kit_closes_its_input():
 
     from hwlib import _physics
 
-    params = np.array([PARAMS, [0.0, 0.0, -1.0, -0.3]])
+    params = np.array([PARAMS, [0.2, 0.1, 0.4, -0.6]])
     starts = _engine.start_states(np.array([3, 4]))
     helper = _physics.HelperProcess(_engine.physics())
     try:
