@@ -1,5 +1,7 @@
 """Fixtures shared by the unit tests."""
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -25,3 +27,11 @@ def find_balancing_params(seeds=BALANCING_SEEDS, search_seed=0):
 def balancing_params():
     """Four weights with which the linear policy balances for all 500 steps from seeds 0-4."""
     return find_balancing_params()
+
+
+@pytest.fixture(autouse=True)
+def _reap_adopted_orphans():
+    """After every test: reap the pool users' zombies this process adopted (``process_watch``)."""
+    yield
+    if "process_watch" in sys.modules:
+        sys.modules["process_watch"].reap_adopted_orphans()

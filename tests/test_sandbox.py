@@ -453,3 +453,34 @@ def test_messages_carry_numbers_only():
         worker.unpack(buffer.getvalue())
     assert worker.fingerprint(message) == worker.fingerprint({"cases": [{"id": "a", "args": {
         "x": np.arange(3.0), "n": 2, "name": "f"}}]})
+
+
+def test_the_orphans_of_a_user_run_are_reaped_so_its_user_can_fork_again(user, tmp_path):
+    """An orphan of a user-fallback run is killed at the run's end and, as this process is a
+    subreaper, becomes this process's zombie of that user, which counts against the user's
+    process limit until reaped (two test runs at once ran out of it: fork() gave EAGAIN)."""
+    from process_watch import _real_uid, _table, reap_adopted_orphans
+
+    kit = make_kit(tmp_path, textwrap.dedent("""
+        for _ in range(5):
+            if os.fork() == 0:
+                os.setsid()
+                if os.fork() == 0:
+                    time.sleep(600)
+                os._exit(0)
+        time.sleep(0.3)
+        values = np.array([1.0])
+    """))
+    assert values(run(kit, user)).tolist() == [1.0]
+    me = os.getpid()
+
+    def pool_zombies():
+        return [pid for pid, (parent, state, _) in _table().items()
+                if parent == me and state == "Z" and _real_uid(pid) not in (None, os.getuid())]
+
+    deadline = time.monotonic() + 10
+    while len(pool_zombies()) < 5 and time.monotonic() < deadline:  # killed by the run's end, not yet reaped
+        time.sleep(0.05)
+    assert len(pool_zombies()) >= 5
+    assert reap_adopted_orphans() >= 5
+    assert not pool_zombies()
