@@ -38,8 +38,8 @@ import time
 import numpy as np
 
 from hwlib import _engine, _turns
-from hwlib._replay import (CLASS_CODES, CLASSES, PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying,
-                           RunMemory, class_code, policy_of)
+from hwlib._replay import (CLASSES, PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying, RunMemory,
+                           class_code, policy_of)
 from hwlib.cartpole import CartPoleLinearPolicy, _play, make_env
 
 __all__ = ["EVALUATIONS_PER_ITERATION", "PLACEHOLDER_REWARD", "Cancelled", "Session", "current_run"]
@@ -284,8 +284,7 @@ class Session(Replaying):
                 return PLACEHOLDER_REWARD
             self.episodes_played += 1
             return _play_from(policy, seed, None)
-        policy_class = type(policy)
-        key = (CLASS_CODES.get(policy_class) or class_code(policy_class), data, seed)
+        key = (class_code(type(policy)), data, seed)
         if run.memory.asked is not None:
             run.memory.asked.append(key)
         result = self._results.get(key)

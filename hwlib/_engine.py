@@ -104,7 +104,7 @@ def play_batch(params, seeds=None, starts=None):
 class _Physics:
     """CartPole's constants, as gymnasium's environment has them."""
 
-    NAMES = _physics.CONSTANTS[:-1]  # and max_episode_steps, from the environment's spec
+    NAMES = tuple(name for name in _physics.CONSTANTS if name != "max_episode_steps")  # that one: from the spec
 
     def __init__(self):
         env = gym.make(ENV_ID)

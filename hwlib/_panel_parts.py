@@ -28,7 +28,6 @@ from hwlib._checks import check_params, check_seed
 from hwlib.cartpole import MAX_EPISODE_REWARD, OBSERVATION_NAMES, SEED_BOUND
 
 SLIDER_MIN, SLIDER_MAX, SLIDER_STEP = -2.0, 2.0, 0.01
-SLIDER_RANGE = (SLIDER_MIN, SLIDER_MAX)
 OBSERVATION_UNITS = ("m", "m/s", "rad", "rad/s")
 SUBSCRIPTS = "₁₂₃₄"
 SLIDER_LABELS = tuple(

@@ -194,23 +194,23 @@ class Replaying:
         policy's parameters, its other arguments decide the seeds."""
         originals = {name: getattr(module, name) for name in names}
         for name, function in originals.items():
-            binder = _Binder(inspect.signature(function), params_argument) if name == counted else None
-            setattr(module, name, self._replayed(function, binder))
+            signature = inspect.signature(function) if name == counted else None
+            setattr(module, name, self._replayed(function, signature, params_argument))
         try:
             yield
         finally:
             for name, function in originals.items():
                 setattr(module, name, function)
 
-    def _replayed(self, function, binder):
-        counted = binder is not None
+    def _replayed(self, function, signature, params_argument):
+        counted = signature is not None
 
         @functools.wraps(function)
         def replayed(*args, **kwargs):
             run = self._current_run()
             if run is None or run.session is not self:
                 return function(*args, **kwargs)
-            call = binder.call_key(args, kwargs) if counted and self.batched else None
+            call = _call_key(signature, params_argument, args, kwargs) if counted and self.batched else None
             if run.recording:  # inside an outer call's recording pass
                 if call is not None and self._foresee(run, call, run.recorded):
                     return PLACEHOLDER_REWARD
@@ -332,47 +332,18 @@ def _learn(memory, call, asked):
     memory.seeds_of[arguments] = (asked[0][0], seeds)
 
 
-class _Binder:
-    """The key of a call of a counted function: ``call_key(args, kwargs)`` is ((the other
-    arguments, by name, with defaults), params as float64 (4,) or None), or None if the other
-    arguments cannot be compared (not hashable) or the call does not bind. It binds the arguments
-    itself when every parameter is a plain one (``signature.bind`` is slow for every call)."""
-
-    def __init__(self, signature, params_argument):
-        self.signature, self.params_argument = signature, params_argument
-        plain = all(parameter.kind is parameter.POSITIONAL_OR_KEYWORD for parameter in signature.parameters.values())
-        self.names = tuple(signature.parameters) if plain and params_argument in signature.parameters else None
-        self.defaults = {name: parameter.default for name, parameter in signature.parameters.items()
-                         if parameter.default is not parameter.empty}
-
-    def call_key(self, args, kwargs):
-        try:
-            values = self._bind(args, kwargs)
-            arguments = tuple((name, value) for name, value in values.items() if name != self.params_argument)
-            hash(arguments)
-            params = np.asarray(values[self.params_argument], dtype=np.float64).reshape(-1)
-        except (TypeError, ValueError, KeyError):
-            return None
-        return arguments, (params if params.shape == (4,) and np.isfinite(params).all() else None)
-
-    def _bind(self, args, kwargs):
-        names = self.names
-        if names is None:
-            bound = self.signature.bind(*args, **kwargs)
-            bound.apply_defaults()
-            return bound.arguments
-        if len(args) > len(names):
-            raise TypeError("too many arguments")
-        values = dict(zip(names, args))
-        for name, value in kwargs.items():
-            if name in values or name not in names:
-                raise TypeError(f"unexpected argument {name!r}")
-            values[name] = value
-        if len(values) < len(names):
-            for name in names:
-                if name not in values:
-                    values[name] = self.defaults[name]  # KeyError: a required argument is missing
-        return {name: values[name] for name in names}
+def _call_key(signature, params_argument, args, kwargs):
+    """((the other arguments), params as float64 (4,) or None) of one call; None if the other arguments
+    cannot be compared (not hashable) or the call does not bind."""
+    try:
+        bound = signature.bind(*args, **kwargs)
+        bound.apply_defaults()
+        arguments = tuple((name, value) for name, value in bound.arguments.items() if name != params_argument)
+        hash(arguments)
+        params = np.asarray(bound.arguments[params_argument], dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError, KeyError):
+        return None
+    return arguments, (params if params.shape == (4,) and np.isfinite(params).all() else None)
 
 
 # An episode's key names its policy's class by a number: a key then holds only numbers and bytes,
@@ -383,10 +354,11 @@ CLASS_CODES = {}  # policy class -> number
 
 
 def class_code(policy_class):
-    if policy_class not in CLASS_CODES:
-        CLASS_CODES[policy_class] = len(CLASSES)
+    code = CLASS_CODES.get(policy_class)
+    if code is None:
+        code = CLASS_CODES[policy_class] = len(CLASSES)
         CLASSES.append(policy_class)
-    return CLASS_CODES[policy_class]
+    return code
 
 
 def policy_of(policy_class, params):

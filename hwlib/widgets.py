@@ -54,7 +54,6 @@ from hwlib.cartpole import (
 from hwlib._panel_parts import (  # the panel's texts, the sliders' grid, the front-end part
     LANDSCAPE_BUTTON_LABEL,
     LANDSCAPE_TOOLTIP_CONNECTED,
-    LANDSCAPE_TOOLTIP_UNCONNECTED,
     OBSERVATION_UNITS,
     PLAY_TOOLTIP,
     PRESET_TOOLTIPS,
@@ -63,7 +62,6 @@ from hwlib._panel_parts import (  # the panel's texts, the sliders' grid, the fr
     SLIDER_LABELS,
     SLIDER_MAX,
     SLIDER_MIN,
-    SLIDER_RANGE,
     SLIDER_STEP,
     SLIDER_TOOLTIP,
     STATUS_LINES,

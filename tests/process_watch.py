@@ -70,7 +70,8 @@ def live_processes(matches, settle=3.0):
         time.sleep(0.1)
 
 
-def _real_uid(pid):
+def real_uid(pid):
+    """The real user id of process ``pid``, or None if it is gone."""
     try:
         with open(f"/proc/{pid}/status") as status:
             return int(next(line for line in status if line.startswith("Uid:")).split()[1])
@@ -78,19 +79,24 @@ def _real_uid(pid):
         return None
 
 
-def reap_adopted_orphans():
-    """Reap the zombies of other users that this process adopted as a subreaper (the orphans of
-    the user fallback's runs, killed when their run ended); returns how many. Until its parent
-    reaps it, a zombie still counts against its user's process limit (``--nproc`` of the user
-    fallback), so a later run of that pool user, in this test run or another one on the
-    machine, could not fork. Children of this process's own user are left to their owners."""
+def adopted_zombies():
+    """The zombies of other users among this process's children: orphans of the user fallback's
+    runs (killed when their run ended) that this process adopted as a subreaper."""
     mine, me = os.getpid(), os.getuid()
+    return [pid for pid, (parent, state, _) in _table().items()
+            if parent == mine and state == "Z" and real_uid(pid) not in (None, me)]
+
+
+def reap_adopted_orphans():
+    """Reap ``adopted_zombies()``; returns how many. Until its parent reaps it, a zombie still
+    counts against its user's process limit (``--nproc`` of the user fallback), so a later run of
+    that pool user, in this test run or another one on the machine, could not fork. Children of
+    this process's own user are left to their owners."""
     reaped = 0
-    for pid, (parent, state, _) in _table().items():
-        if parent == mine and state == "Z" and _real_uid(pid) not in (None, me):
-            try:
-                os.waitpid(pid, os.WNOHANG)
-                reaped += 1
-            except ChildProcessError:
-                pass
+    for pid in adopted_zombies():
+        try:
+            os.waitpid(pid, os.WNOHANG)
+            reaped += 1
+        except ChildProcessError:
+            pass
     return reaped

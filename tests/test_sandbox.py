@@ -26,7 +26,7 @@ import pytest
 from hwtools.grade import reference, sandbox, user_sandbox, worker
 from hwtools.grade.sandbox import Sandbox
 import containers
-from process_watch import SUBREAPER, live_processes
+from process_watch import SUBREAPER, adopted_zombies, live_processes, real_uid, reap_adopted_orphans
 
 KIT = Path(__file__).resolve().parents[1]
 CANARY = "HWGRADE_CANARY"
@@ -401,11 +401,6 @@ def test_killing_the_sandbox_users_spares_a_run_that_another_grader_holds(user, 
     assert not user_sandbox.processes_of(uid)
 
 
-def _uid(pid):
-    with open(f"/proc/{pid}/status") as status:
-        return int(next(line for line in status if line.startswith("Uid:")).split()[1])
-
-
 def test_a_trusted_run_under_the_user_fallback_takes_no_user_of_the_pool(user, tmp_path):
     """A reference server (``trusted``: no student code) runs as the grader's own user: it never
     shares a uid with a student's run, and it starts while students' runs hold every pool user (so
@@ -425,7 +420,7 @@ def test_a_trusted_run_under_the_user_fallback_takes_no_user_of_the_pool(user, t
         assert started, "a trusted run waited for a user of the pool"
         server = started[0]
         try:
-            assert server._run_folder is None and _uid(server.process.pid) == os.geteuid() not in pool
+            assert server._run_folder is None and real_uid(server.process.pid) == os.geteuid() not in pool
         finally:
             server.finish(graceful=False)
     finally:
@@ -459,8 +454,6 @@ def test_the_orphans_of_a_user_run_are_reaped_so_its_user_can_fork_again(user, t
     """An orphan of a user-fallback run is killed at the run's end and, as this process is a
     subreaper, becomes this process's zombie of that user, which counts against the user's
     process limit until reaped (two test runs at once ran out of it: fork() gave EAGAIN)."""
-    from process_watch import _real_uid, _table, reap_adopted_orphans
-
     kit = make_kit(tmp_path, textwrap.dedent("""
         for _ in range(5):
             if os.fork() == 0:
@@ -472,15 +465,9 @@ def test_the_orphans_of_a_user_run_are_reaped_so_its_user_can_fork_again(user, t
         values = np.array([1.0])
     """))
     assert values(run(kit, user)).tolist() == [1.0]
-    me = os.getpid()
-
-    def pool_zombies():
-        return [pid for pid, (parent, state, _) in _table().items()
-                if parent == me and state == "Z" and _real_uid(pid) not in (None, os.getuid())]
-
     deadline = time.monotonic() + 10
-    while len(pool_zombies()) < 5 and time.monotonic() < deadline:  # killed by the run's end, not yet reaped
+    while len(adopted_zombies()) < 5 and time.monotonic() < deadline:  # killed by the run's end, not yet reaped
         time.sleep(0.05)
-    assert len(pool_zombies()) >= 5
+    assert len(adopted_zombies()) >= 5
     assert reap_adopted_orphans() >= 5
-    assert not pool_zombies()
+    assert not adopted_zombies()
