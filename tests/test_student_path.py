@@ -127,6 +127,14 @@ def test_hand_in_checks_then_writes_a_zip_the_instructors_grader_grades_in_full(
     assert result["total"]["auto_earned"] == AUTO_POINTS, [(e["id"], e["auto_earned"]) for e in result["todos"]]
 
 
+def test_the_grader_says_why_it_cannot_read_one_zip(tmp_path):
+    (tmp_path / "alovelac.zip").write_text("not a zip")
+    done = subprocess.run([sys.executable, "-m", "hwtools.grade", str(tmp_path / "alovelac.zip")], cwd=KIT,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and done.stderr.strip() == (f"error: {tmp_path / 'alovelac.zip'}: unreadable: not a zip "
+                                                            "file (no end-of-archive record)"), done.stderr
+
+
 @pytest.mark.timeout(900)
 def test_hand_in_says_when_training_does_not_converge_and_still_hands_in(path, tmp_path):
     kit, python = path

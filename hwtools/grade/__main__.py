@@ -61,7 +61,8 @@ def main(argv=None):
             return classroom.main(args, parser)
         parser.error(f"{submission}: neither a kit's folder (with hwlib/), nor a .zip, nor a folder of submissions")
     if args.gradebook or args.feedback:
-        parser.error(f"{submission} is a kit (it has hwlib/); --gradebook and --feedback are for a folder of submissions")
+        what = "one student's zip" if one_zip else "a kit (it has hwlib/)"
+        parser.error(f"{submission} is {what}; --gradebook and --feedback are for a folder of submissions")
     reference = args.reference
     if reference is None and args.answer_key is None and has_solutions(KIT_ROOT):
         reference = KIT_ROOT
@@ -69,8 +70,11 @@ def main(argv=None):
         grader = Grader(reference, answer_key=args.answer_key, python=args.python, isolation=args.isolation,
                         time_limit=args.time_limit, memory_limit=args.memory_limit * 2**20, jobs=args.jobs)
         result = grade_zip(grader, submission, args.todo) if one_zip else grader.grade(submission, todos=args.todo)
-    except (GradingError, Unusable) as error:
+    except GradingError as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except Unusable as error:
+        print(f"error: {submission}: {error.text}", file=sys.stderr)
         return 2
     sys.stdout.write(render(result, details=not args.brief))
     if args.json:
