@@ -1,6 +1,6 @@
 """Day one's costs: Run All of problem 1, and the check cell of each TODO.
 
-    .venv/bin/python benchmarks/bench_dayone.py [--rounds N] [--skip-run-all]
+    .venv/bin/python benchmarks/bench_dayone.py [--rounds N] [--skip-run-all] [--done]
 
 1. **Run All of problem 1** (the instructor's edition, a fresh kernel, as ``nbconvert --execute``
    does): wall clock and CPU seconds (the kernel and everything it ran: the check cells' graders
@@ -16,6 +16,16 @@
    test as the student runs them): seconds and lines printed (it took 13.5 min and printed 3,400
    lines before its failures named their TODO and its browser tests waited for errors they could
    not see).
+4. **The done student's path** (``--done``): the student edition with every TODO holding the
+   reference solution and JupyterLab's checkpoint beside ``hwlib/cartpole.py``, run with a Python like
+   a student's (``day_one.student_python``): its ``pytest`` (seconds, tests), then
+   ``python -m hwtools.handin ID --no-report`` and ``python -m hwtools.handin ID`` (seconds; the
+   report runs both notebooks). ``hwtools/handin.py`` says the report's time from these runs.
+
+Measured 2026-12-02 on a 2-core Debian box shared by four sessions: the done edition's pytest, 218
+tests, 74 s to 2 min 37 s at load 3-6 (94 s at load 3.1-4.8 in this script); hand-in --no-report
+11-14 s at load 3-5 (its ten checks); hand-in with the report 1 min 32 s at load 4-5, the report
+alone 2 min 18 s at load 3-7.
 
 The load average of the machine is printed before and after: on a shared machine wall times
 grow with it.
@@ -135,15 +145,46 @@ def bench_untouched_pytest():
     print(f"\nthe untouched student edition's pytest: {seconds:.0f} s, {len(lines)} lines; {lines[-1].strip('= ')}")
 
 
+def bench_done_path():
+    import subprocess
+
+    sys.path.insert(0, str(KIT / "tests"))
+    from day_one import kit_env, student_python
+    from hwtools.todos import TODO_BY_ID
+    from instructor.release import build_student_edition
+
+    with tempfile.TemporaryDirectory(prefix="bench-dayone-") as scratch:
+        kit = Path(scratch) / "kit"
+        build_student_edition(KIT, kit, keep=frozenset(TODO_BY_ID))
+        (kit / "hwlib" / ".ipynb_checkpoints").mkdir()
+        shutil.copyfile(kit / "hwlib" / "cartpole.py", kit / "hwlib" / ".ipynb_checkpoints" / "cartpole-checkpoint.py")
+        python = student_python(Path(scratch) / "venv")
+        print("\nthe done student's path (a filled student edition, a checkpoint beside cartpole.py):")
+        for what, args in (("pytest", ["-m", "pytest", "-q", "-p", "no:cacheprovider"]),
+                           ("hand-in --no-report", ["-m", "hwtools.handin", "alovelac", "--no-report"]),
+                           ("hand-in with the report", ["-m", "hwtools.handin", "alovelac"])):
+            load, started = os.getloadavg()[0], time.perf_counter()
+            done = subprocess.run([str(python), *args], cwd=kit, env=kit_env(kit), capture_output=True, text=True)
+            seconds = time.perf_counter() - started
+            last = done.stdout.strip().splitlines()[-1] if done.stdout.strip() else done.stderr.strip()[-200:]
+            print(f"  {what:24s} {seconds:6.1f} s (load {load:.1f} -> {os.getloadavg()[0]:.1f}; exit {done.returncode}): "
+                  f"{last.strip('= ')}", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--skip-run-all", action="store_true")
     parser.add_argument("--skip-checks", action="store_true")
     parser.add_argument("--skip-pytest", action="store_true")
+    parser.add_argument("--done", action="store_true", help="only the done student's path: pytest and hand-in")
     args = parser.parse_args()
     os.environ.setdefault("MPLBACKEND", "Agg")
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    if args.done:
+        bench_done_path()
+        print(f"\nload average {os.getloadavg()[0]:.1f} at the end")
+        return
     if not args.skip_checks:
         bench_checks(args.rounds)
     if not args.skip_run_all:

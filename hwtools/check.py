@@ -244,10 +244,12 @@ def untouched_todos(kit=KIT_ROOT):
     code cells is still the student edition's stub: comments, ``pass``, ``raise TodoNotDone(...)``
     or ``NAME = None``. Read from the files; nothing is run. (In the instructor's edition: none.)"""
     from hwtools.grade.blocks import SubmissionError, find_blocks  # noqa: PLC0415 - the grader's marker reader
+    from hwtools.markers import is_leftover  # noqa: PLC0415
 
     kit = Path(kit)
     bodies = {}
-    sources = [path.read_text(encoding="utf-8") for path in sorted((kit / "hwlib").rglob("*.py"))]
+    sources = [path.read_text(encoding="utf-8") for path in sorted((kit / "hwlib").rglob("*.py"))
+               if not is_leftover(path.relative_to(kit))]
     for path in sorted((kit / "notebooks").glob("*.ipynb")):
         try:
             cells = json.loads(path.read_text(encoding="utf-8"))["cells"]

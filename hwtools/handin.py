@@ -2,37 +2,52 @@
 
     python -m hwtools.handin ANDREW_ID [--name "Ada Lovelace"] [--out handin/] [--no-report]
 
-writes into ``handin/`` (next to the kit's ``hwlib/`` unless ``--out`` says otherwise):
+It checks first and writes nothing until then:
+
+1. the zip is built in memory and opened with the grader's own reader (``hwtools.grade.classroom
+   .open_submission``, the one that reads a class's zips), which must find the code of every TODO;
+   otherwise it stops, naming the TODO and the file, and writes nothing;
+2. the visible checks run, each as the notebook's ``check("1.2.1")`` cell runs it
+   (``hwtools.check``), and it says which fail and whether training converges (TODO 1.3.3). A
+   failing check does not stop the hand-in: it is yours to decide.
+
+Then it writes into ``handin/`` (next to the kit's ``hwlib/`` unless ``--out`` says otherwise):
 
 * ``ANDREW_ID.zip``: your code, ``hwlib/`` (every ``.py`` file) and ``notebooks/`` (the notebooks as
-  saved), for Canvas. Before it says so, the command opens the zip with the grader's own reader
-  (``hwtools.grade.classroom.open_submission``, the one that reads a class's zips) and reads the
-  code of every TODO from it, so a zip it accepts is one the grader can grade; it names every TODO
-  whose code is still the stub.
+  saved), for Canvas. No time stamps: the same files give the same bytes. What editors and Jupyter
+  leave beside your files (``.ipynb_checkpoints/``, ``*~``, ``.swp``; ``markers.is_leftover``) is
+  left out, as every reader of the kit leaves it out.
 * ``ANDREW_ID.pdf``: the report (``python -m hwtools.report``, which runs both notebooks from a fresh
-  kernel), for Gradescope; the whole report, its figures and, where the report writes it, the
-  LaTeX source ``answers.tex``, are in ``handin/report/``.
+  kernel), for Gradescope; the whole report, its figures and the LaTeX source ``answers.tex`` where
+  the report writes it, are in ``handin/report/``. It is built beside the previous report, which it
+  replaces only once complete (and says so); a report that fails leaves the previous one as it was.
 
-The zip holds no time stamps: the same files give the same bytes.
+Each step says how long it took; at the end, the whole hand-in's time.
 """
 
 from __future__ import annotations
 
 import argparse
 import io
+import os
 import re
 import shutil
 import subprocess
 import sys
+import tempfile
+import time
 import zipfile
 from pathlib import Path
 
-from hwtools.check import KIT_ROOT, untouched_todos
-from hwtools.todos import TODO_BY_ID
+from hwtools import markers
+from hwtools.check import KIT_ROOT, CheckError, check_lines, grade_todo
 
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # the earliest date a zip can hold: no time stamps
 ANDREW_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
-SKIPPED = {"__pycache__", ".ipynb_checkpoints"}
+TRAINING = "1.3.3"  # the TODO whose check trains with the student's LEARNING_RATE
+# What the report costs, said before it starts (the real time is said after): benchmarks/bench_dayone.py --done,
+# 2026-12-02, 2 cores at load 3-7: 1 min 32 s to 2 min 18 s.
+REPORT_TIME = "1.5 to 2.5 minutes on 2 cores with other programs running"
 
 
 class HandinError(Exception):
@@ -40,22 +55,22 @@ class HandinError(Exception):
 
 
 def code_files(kit):
-    """The files of the hand-in, as sorted paths relative to ``kit``: hwlib/**/*.py and notebooks/*.ipynb."""
+    """The files of the hand-in, as sorted paths relative to ``kit``: hwlib/**/*.py and notebooks/*.ipynb,
+    without the leftovers of editors, Jupyter and Python (``markers.is_leftover``) and without links."""
     kit = Path(kit)
     found = []
     for pattern in ("hwlib/**/*.py", "notebooks/*.ipynb"):
         for path in kit.glob(pattern):
-            relative = path.relative_to(kit)
-            if path.is_file() and not path.is_symlink() and not SKIPPED & set(relative.parts):
-                found.append(relative.as_posix())
+            relative = path.relative_to(kit).as_posix()
+            if path.is_file() and not path.is_symlink() and not markers.is_leftover(relative):
+                found.append(relative)
     if not any(name.startswith("hwlib/") for name in found):
         raise HandinError(f"{kit}: no hwlib/ folder with Python files; run this from the kit")
     return sorted(found)
 
 
-def write_zip(kit, out_path):
-    """Write the zip of the code of the kit at ``kit`` to ``out_path``; returns the names in it."""
-    names = code_files(kit)
+def zip_bytes(kit, names):
+    """The zip of the files ``names`` of the kit at ``kit``, as bytes: sorted, no time stamps."""
     buffer = io.BytesIO()
     with zipfile.ZipFile(buffer, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         for name in names:
@@ -63,10 +78,7 @@ def write_zip(kit, out_path):
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
             archive.writestr(info, (Path(kit) / name).read_bytes())
-    out_path = Path(out_path)
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    out_path.write_bytes(buffer.getvalue())
-    return names
+    return buffer.getvalue()
 
 
 def read_back(zip_path, kit):
@@ -86,8 +98,54 @@ def read_back(zip_path, kit):
             taken = sorted(path.relative_to(opened.kit).as_posix() for path in opened.kit.rglob("*") if path.is_file())
             read = blocks.read_submission(opened.kit, layout)
     except classroom.Unusable as error:
-        raise HandinError(f"the grader's reader refuses {zip_path}: {error.text()}") from None
+        raise HandinError(f"the grader's reader refuses the zip: {error.text}") from None
     return dict(read.problems), taken
+
+
+def checked_zip(kit, andrew_id):
+    """(the zip's bytes, its file names) once the grader's reader has read every TODO's code from it;
+    else HandinError. Nothing is written but a temporary copy, deleted at once."""
+    names = code_files(kit)
+    data = zip_bytes(kit, names)
+    with tempfile.TemporaryDirectory(prefix="hwhandin-") as scratch:
+        trial = Path(scratch) / f"{andrew_id}.zip"
+        trial.write_bytes(data)
+        problems, taken = read_back(trial, kit)
+    if problems:
+        lines = [f"  TODO {todo}: {why}" for todo, why in sorted(problems.items())]
+        raise HandinError("the grader cannot read the code of these TODOs from your files (nothing was written):\n"
+                          + "\n".join(lines) + "\nEach TODO's code goes between its ### BEGIN TODO and ### END TODO "
+                          "lines, in the file the kit gave; put back what is missing and run this again.")
+    left_out = sorted(set(names) - set(taken))
+    if left_out:
+        raise HandinError(f"the grader's reader leaves out {', '.join(left_out[:5])} (nothing was written): check "
+                          "those files")
+    return data, names
+
+
+def visible_checks(kit, say=print):
+    """Run every TODO's visible checks as its check cell does; say a line per TODO (all of a failing
+    one's lines) and whether training converges. Returns the ids of the TODOs whose checks do not pass."""
+    from hwtools.grade.checks import GRADED_TODOS  # noqa: PLC0415 - the TODOs that have checks
+
+    failing = []
+    for todo in GRADED_TODOS:
+        try:
+            entry = grade_todo(todo, kit=kit)
+        except CheckError as error:
+            say(f"  TODO {todo}: the check could not run ({error})")
+            failing.append(todo)
+            continue
+        lines = check_lines(entry)
+        if entry["status"] == "graded" and all(check["passed"] or check["failed_on"] == "hidden" for check in entry["checks"]):
+            say(f"  {lines[0]}")
+        else:
+            failing.append(todo)
+            say("\n".join(f"  {line}" for line in lines))
+    if TRAINING in GRADED_TODOS:
+        say(f"  training with your LEARNING_RATE {'does NOT converge' if TRAINING in failing else 'converges'} within "
+            f"7 iterations (the check of TODO {TRAINING})")
+    return failing
 
 
 def build_report(kit, out_dir, name):
@@ -104,46 +162,75 @@ def build_report(kit, out_dir, name):
     return pdf
 
 
+def minutes(seconds):
+    """``seconds`` as a student reads a wait: "48 s", "2 min 05 s"."""
+    return f"{seconds:.0f} s" if seconds < 60 else f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
+
+
+def _written(path):
+    return time.strftime("%Y-%m-%d %H:%M", time.localtime(path.stat().st_mtime))
+
+
+def write_report(kit, out_dir, andrew_id, name, say=print):
+    """Build the report beside ``out_dir/report`` and put it in place once complete; the PDF's path."""
+    report_dir, target = out_dir / "report", out_dir / f"{andrew_id}.pdf"
+    building = out_dir / f".report-building-{os.getpid()}"
+    shutil.rmtree(building, ignore_errors=True)
+    try:
+        pdf = build_report(kit, building, f"{name} / {andrew_id}" if name else andrew_id)
+    except BaseException as error:
+        shutil.rmtree(building, ignore_errors=True)
+        if isinstance(error, HandinError) and report_dir.exists():
+            raise HandinError(f"{error}\nYour previous report in {report_dir} (written {_written(report_dir)}) is "
+                              "kept as it was.") from None
+        raise
+    if report_dir.exists():
+        say(f"  it replaces the previous report in {report_dir} (written {_written(report_dir)})")
+        shutil.rmtree(report_dir)
+    building.rename(report_dir)
+    shutil.copyfile(report_dir / pdf.name, target)
+    return target
+
+
 def handin(andrew_id, kit=KIT_ROOT, out_dir=None, name=None, report=True, say=print):
-    """Build the hand-in of the kit at ``kit``; returns {"zip": path, "pdf": path or None, "untouched": [...]}."""
+    """Build the hand-in of the kit at ``kit``; returns {"zip": path, "pdf": path or None, "failing": [TODO ids
+    whose visible checks do not pass]}."""
     if not ANDREW_ID.fullmatch(andrew_id or ""):
         raise HandinError(f"{andrew_id!r} is not an Andrew ID (letters, digits, '.', '_' or '-'; it names the zip)")
+    started = time.monotonic()
     kit = Path(kit).resolve()
     out_dir = Path(out_dir).resolve() if out_dir else kit / "handin"
     zip_path = out_dir / f"{andrew_id}.zip"
-    names = write_zip(kit, zip_path)
-    problems, taken = read_back(zip_path, kit)
-    if problems:
-        lines = [f"  TODO {todo}: {why}" for todo, why in sorted(problems.items())]
-        raise HandinError("the grader cannot read the code of these TODOs from your files:\n" + "\n".join(lines))
-    left_out = sorted(set(names) - set(taken))
-    if left_out:
-        raise HandinError(f"the grader's reader leaves out {', '.join(left_out[:5])}: check those files")
-    untouched = untouched_todos(kit)
-    say(f"{zip_path}: {len(names)} files, {zip_path.stat().st_size / 1e6:.2f} MB; the grader's reader opens it and "
-        f"finds the code of every TODO")
-    for todo in untouched:
-        say(f"  TODO {todo} ({TODO_BY_ID[todo].title}) is not done yet: its code is still the stub")
-    result = {"zip": zip_path, "pdf": None, "untouched": untouched}
+    data, names = checked_zip(kit, andrew_id)
+    say(f"{len(names)} files; the grader's reader opens their zip and finds the code of every TODO")
+    step = time.monotonic()
+    say("the visible checks, as each check(...) cell runs them:")
+    failing = visible_checks(kit, say)
+    say(f"  ({minutes(time.monotonic() - step)}) "
+        + (f"TODO {', '.join(failing)} {'does' if len(failing) == 1 else 'do'} not pass {'its' if len(failing) == 1 else 'their'} "
+           "visible checks; you may still hand in, and fix and hand in again before the deadline."
+           if failing else "every visible check passes."))
+    out_dir.mkdir(parents=True, exist_ok=True)
+    replaced = zip_path.is_file() and zip_path.read_bytes() != data
+    zip_path.write_bytes(data)
+    say(f"{zip_path}: {len(data) / 1e6:.2f} MB" + (f" (it replaces the earlier {zip_path.name}, of other files)" if replaced else ""))
+    result = {"zip": zip_path, "pdf": None, "failing": failing}
     if report:
-        report_dir = out_dir / "report"
-        if report_dir.exists():
-            shutil.rmtree(report_dir)
-        say("building the report (it runs both notebooks from a fresh kernel; about a minute) ...")
-        pdf = build_report(kit, report_dir, f"{name} / {andrew_id}" if name else andrew_id)
-        target = out_dir / f"{andrew_id}.pdf"
-        shutil.copyfile(pdf, target)
-        result["pdf"] = target
-        say(f"{target}: the report (all its files, the LaTeX source included where written, are in {report_dir})")
+        step = time.monotonic()
+        say(f"building the report: both notebooks run from a fresh kernel, then the PDF is printed ({REPORT_TIME}) ...")
+        result["pdf"] = write_report(kit, out_dir, andrew_id, name, say)
+        say(f"{result['pdf']}: the report ({minutes(time.monotonic() - step)}; all its files, the LaTeX source "
+            f"included where written, are in {out_dir / 'report'})")
     say("")
-    say(f"Hand in {zip_path.name} on Canvas" + (f" and {andrew_id}.pdf on Gradescope." if report else "."))
+    say(f"Hand in {zip_path.name} on Canvas" + (f" and {andrew_id}.pdf on Gradescope." if report else ".")
+        + f" (hand-in took {minutes(time.monotonic() - started)})")
     return result
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m hwtools.handin",
                                      description="Build the hand-in: ANDREW_ID.zip (your code, read back with the "
-                                                 "grader's reader) and ANDREW_ID.pdf (the report).")
+                                                 "grader's reader, after the visible checks) and ANDREW_ID.pdf (the report).")
     parser.add_argument("andrew_id", metavar="ANDREW_ID", help="your Andrew ID: it names the zip and the PDF")
     parser.add_argument("--name", help="your name, for the report's name line (NAME / ANDREW_ID)")
     parser.add_argument("--out", metavar="FOLDER", help="where to write them (default: handin/ in the kit)")
@@ -154,6 +241,9 @@ def main(argv=None):
     except HandinError as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        print("interrupted: the zip and the report are as they were before, unless said above", file=sys.stderr)
+        return 130
     return 0
 
 

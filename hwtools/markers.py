@@ -25,6 +25,10 @@ The rules, for every caller:
 no line that looks like a marker but is not one, an END indented like its BEGIN. The grader reads
 a student's file without it: an END marker's indentation changes no Python.
 
+Which files are the kit's at all is one rule too (``is_leftover``): every reader of a kit's files
+(the release build, hand-in, the grader's reader of a kit or a submission, a class's folder) leaves
+out what editors, Jupyter and Python leave beside them.
+
 Standard library only, and nothing of the kit: the grader's trusted process imports this module.
 """
 
@@ -48,6 +52,27 @@ _MARKER = {
 }
 _HINT = re.compile(rf"^{_BLANK}*###{_BLANK}*HINT:{_BLANK}*(?P<hint>.*?){_BLANK}*$")
 _STUB = re.compile(rf"^{_BLANK}*###{_BLANK}*STUB:(?: (?P<code>.*?))?{_BLANK}*$")
+
+
+# The leftovers of editors, Jupyter, Python and archivers: never a file of the kit, wherever they lie.
+# Any name starting with a dot is one (JupyterLab's .ipynb_checkpoints/ and .virtual_documents/, vim's
+# .cartpole.py.swp, .git/, .venv/, macOS's .DS_Store and ._ files) except the kit's own dot-files.
+KIT_DOT_NAMES = frozenset({".ci", ".gitignore", ".gitattributes"})
+LEFTOVER_NAMES = frozenset({"__pycache__", "__MACOSX", "venv", "node_modules"})
+LEFTOVER_ENDINGS = ("~", ".swp", ".swo", ".pyc", ".pyo")  # emacs and gedit backups, vim swap files, bytecode
+
+
+def is_leftover(path):
+    """True where ``path`` (relative to a kit or a submission: a string with ``/`` or ``\\``, or a
+    ``PurePath``) is an editor's, Jupyter's or Python's leftover or lies inside one: a part that starts
+    with a dot (other than ``KIT_DOT_NAMES``), is in ``LEFTOVER_NAMES``, ends in ``LEFTOVER_ENDINGS``
+    or is an emacs autosave ``#name#``. Every reader of a kit's files asks this one function."""
+    parts = str(path).replace("\\", "/").split("/")
+    return any(
+        (part.startswith(".") and part not in KIT_DOT_NAMES and part not in (".", ".."))
+        or part in LEFTOVER_NAMES or part.endswith(LEFTOVER_ENDINGS) or (len(part) > 1 and part[0] == part[-1] == "#")
+        for part in parts
+    )
 
 
 class MarkerError(ValueError):

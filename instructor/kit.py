@@ -15,15 +15,46 @@ from hwtools import markers
 from hwtools.todos import TODO_BY_ID
 
 # Left out of the student edition: path prefixes relative to the kit (folders end with "/").
+# The student's own tests are those of what a student writes: the TODOs' functions (test_cartpole,
+# test_finite_diff, test_policy_search, test_logreg), the "not done yet" messages (test_todo) and the
+# notebooks (--nbval-lax); they end in a few minutes. Everything else tests the kit itself and stays here.
 INSTRUCTOR_ONLY = (
     "instructor/",  # the release tool, hidden checks, wrong solutions: one folder
+    # The release and the student's path through its edition.
     "tests/test_release.py",
+    "tests/test_student_edition.py",
+    "tests/test_student_path.py",
+    "tests/day_one.py",  # the helper of the student-edition tests
+    # The grader: its proof, its checks, its sandbox and protocol, a class, Gradescope.
     "tests/test_markers.py",  # its copies of the kit are graded against the reference
     "tests/test_grading.py",
     "tests/test_checks.py",  # grades the wrong and natural solutions against the reference
+    "tests/test_check.py",  # the check cells' verdicts against the instructor's grade
     "tests/test_classroom.py",  # classes built from the wrong solutions and cheats, graded against the reference
     "tests/test_gradescope.py",
-    "tests/test_student_edition.py",
+    "tests/containers.py",
+    "tests/test_sandbox.py",
+    "tests/process_watch.py",
+    "tests/test_protocol.py",
+    # The engine that makes plain code fast, and the layout of hwlib.
+    "tests/test_batch.py",
+    "tests/test_progress.py",
+    "tests/test_hwlib_layout.py",
+    "tests/test_imports.py",
+    # The given code a student calls but does not write: plots, the panel, the landscape, the data.
+    "tests/test_plots_cartpole.py",
+    "tests/test_plots_training.py",
+    "tests/test_widgets.py",
+    "tests/test_landscape.py",
+    "tests/test_food_data.py",
+    # JupyterLab in a browser, the quick start, the report.
+    "tests/test_browser.py",
+    "tests/test_browser_dayone.py",
+    "tests/test_browser_landscape.py",
+    "tests/lab_under_test.py",
+    "tests/test_quick_start.py",
+    "tests/test_report.py",
+    # Fixtures of the grader's proof.
     "tests/hidden/",
     "tests/wrong_solutions/",
     "tests/natural_solutions/",  # working solutions of every TODO
@@ -34,16 +65,16 @@ INSTRUCTOR_ONLY = (
     "benchmarks/bench_grading.py",  # it grades against the reference solution
     "benchmarks/bench_classroom.py",
     "benchmarks/bench_dayone.py",  # it builds a student edition with the solutions kept
-    "tests/day_one.py",  # the helper of the student-edition tests
 )
 
 # Only the homework holds solution blocks; tooling elsewhere (the grader) may talk about markers freely.
 HOMEWORK_FOLDERS = ("hwlib/", "notebooks/")
 
-# Never part of a kit, whatever git says: at any depth, and (build output) at the top.
-SKIPPED_PARTS = {".git", ".venv", "venv", "__pycache__", ".pytest_cache", ".ipynb_checkpoints"}
+# Never part of a kit, whatever git says: the leftovers of editors, Jupyter and Python at any depth
+# (``markers.is_leftover``: .ipynb_checkpoints/, .venv/, __pycache__/, *~, .*.swp, ...), build output
+# at the top, and the package metadata pip writes.
 SKIPPED_TOP = {"build", "dist", "test-artifacts"}
-SKIPPED_SUFFIXES = (".pyc", ".egg-info")
+SKIPPED_SUFFIXES = (".egg-info",)
 
 SOLUTION = ("SOLUTION",)  # the instructor's kit fences solutions with SOLUTION markers only
 
@@ -58,7 +89,9 @@ class ReleaseError(Exception):
 
 
 def kit_files(source):
-    """The kit's files, as sorted POSIX paths relative to ``source``."""
+    """The kit's files, as sorted POSIX paths relative to ``source``. A file git tracks that looks
+    like a leftover (``markers.is_leftover``) stops the build: either it is one, committed by
+    mistake, or it is the kit's and its name belongs in ``markers.KIT_DOT_NAMES``."""
     source = Path(source)
     names = None
     if (source / ".git").exists() and shutil.which("git"):
@@ -66,8 +99,14 @@ def kit_files(source):
             ["git", "-C", str(source), "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
             capture_output=True, check=False,
         )
-        if result.returncode == 0:
+        tracked = subprocess.run(["git", "-C", str(source), "ls-files", "-z", "--cached"], capture_output=True, check=False)
+        if result.returncode == 0 and tracked.returncode == 0:
             names = [name for name in result.stdout.decode("utf-8").split("\0") if name]
+            committed = [name for name in tracked.stdout.decode("utf-8").split("\0") if name and markers.is_leftover(name)]
+            if committed:
+                raise ReleaseError(f"{committed[0]}: git tracks it, but it looks like an editor's or a tool's leftover "
+                                   "(hwtools/markers.py, is_leftover); remove it from git (git rm --cached), or, if it "
+                                   "is the kit's own, add its name to KIT_DOT_NAMES there")
     if names is None:
         names = [path.relative_to(source).as_posix() for path in source.rglob("*") if path.is_file() or path.is_symlink()]
     return sorted(name for name in set(names) if _is_kit_file(source, name))
@@ -75,7 +114,7 @@ def kit_files(source):
 
 def _is_kit_file(source, name):
     parts = PurePosixPath(name).parts
-    if parts[0] in SKIPPED_TOP or any(part in SKIPPED_PARTS or part.endswith(SKIPPED_SUFFIXES) for part in parts):
+    if markers.is_leftover(name) or parts[0] in SKIPPED_TOP or any(part.endswith(SKIPPED_SUFFIXES) for part in parts):
         return False
     if parts[0] == "data" and (name.endswith(".npz") or (len(parts) > 1 and parts[1] == "audio")):
         return False  # the course's data is never copied

@@ -46,6 +46,8 @@ pair, nested markers, mismatched ids or a block without a TODO id stop the build
 from __future__ import annotations
 
 import argparse
+import os
+import secrets
 import shutil
 import sys
 from pathlib import Path
@@ -110,32 +112,65 @@ def build_student_edition(source, out_dir, keep=frozenset(), replace=None, force
     With ``answer_key`` the grader's answer key for the visible checks (``ANSWER_KEY``: the
     reference's values on the visible inputs, nothing about hidden ones) is written too, so that
     ``python -m hwtools.grade`` works in the student edition; it runs the reference sandboxed.
+
+    The edition is written into a temporary folder beside ``out_dir`` and renamed into place once
+    complete (an earlier edition there, with ``force``, is replaced only then): a build that fails,
+    or is interrupted, leaves ``out_dir`` as it was and no half-built folder.
     """
     source, out_dir = Path(source).resolve(), Path(out_dir).resolve()
     if out_dir == source or source.is_relative_to(out_dir):
         raise ReleaseError(f"{out_dir}: the output folder must not be the kit or contain it")
     files = student_files(source, keep, replace)
-    if out_dir.exists():
-        if not out_dir.is_dir():
+    if out_dir.exists() or out_dir.is_symlink():
+        if not out_dir.is_dir() or out_dir.is_symlink():
             raise ReleaseError(f"{out_dir}: exists and is not a folder")
         if any(out_dir.iterdir()):
             if not force:
                 raise ReleaseError(f"{out_dir}: not empty (pass --force to replace an earlier student edition)")
             if not ((out_dir / "hwlib").is_dir() and (out_dir / "pyproject.toml").is_file()):
                 raise ReleaseError(f"{out_dir}: not empty and not a kit; refusing to delete it")
-            shutil.rmtree(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    for name, (data, executable) in sorted(files.items()):
-        target = out_dir / name
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_bytes(data)
-        target.chmod(0o755 if executable else 0o644)
-    if answer_key:
-        from hwtools.grade import write_answer_key  # noqa: PLC0415 - only the full build needs the grader
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    building = _sibling(out_dir, "building")
+    try:
+        for name, (data, executable) in sorted(files.items()):
+            target = building / name
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_bytes(data)
+            target.chmod(0o755 if executable else 0o644)
+        names = sorted(files)
+        if answer_key:
+            from hwtools.grade import write_answer_key  # noqa: PLC0415 - only the full build needs the grader
 
-        write_answer_key(source, out_dir / ANSWER_KEY)
-        return sorted([*files, ANSWER_KEY])
-    return sorted(files)
+            write_answer_key(source, building / ANSWER_KEY)
+            names = sorted([*names, ANSWER_KEY])
+        _move_into_place(building, out_dir)
+    except BaseException:
+        shutil.rmtree(building, ignore_errors=True)
+        raise
+    return names
+
+
+def _move_into_place(building, out_dir):
+    """Rename the finished edition ``building`` to ``out_dir``, an earlier edition there deleted after."""
+    if not out_dir.exists():
+        building.rename(out_dir)
+        return
+    earlier = _sibling(out_dir, "earlier")
+    out_dir.rename(earlier / "edition")
+    try:
+        building.rename(out_dir)
+    except BaseException:
+        (earlier / "edition").rename(out_dir)  # put the earlier edition back
+        raise
+    finally:
+        shutil.rmtree(earlier, ignore_errors=True)
+
+
+def _sibling(out_dir, what):
+    """A new empty folder beside ``out_dir``, hidden by its leading dot (made with the usual permissions)."""
+    folder = out_dir.parent / f".{out_dir.name}.{what}-{os.getpid()}-{secrets.token_hex(4)}"
+    folder.mkdir()
+    return folder
 
 
 def main(argv=None):

@@ -7,6 +7,9 @@ bare ``raise NotImplementedError()``, this module writes those stubs in the buil
 stand-in ``hwlib/_todo.py`` if the kit has none. Once the release tool does it, nothing is
 rewritten here: the tests then look at the real stubs.
 
+``student_python(folder)`` makes a Python like a student's, which has the kit's packages but not the
+instructor's tools.
+
 ``step_through(path)`` runs every code cell of a notebook in one kernel, on past errors, as a
 student pressing Shift-Enter through it does, and gives each cell's outputs.
 """
@@ -18,6 +21,7 @@ import os
 import re
 import subprocess
 import sys
+import sysconfig
 from pathlib import Path
 
 KIT = Path(__file__).resolve().parents[1]
@@ -95,6 +99,20 @@ def day_one_edition(out, **options):
 def kit_env(kit):
     """The environment in which the kit at ``kit`` (not this one) is what Python imports."""
     return {**os.environ, "PYTHONPATH": str(kit), "MPLBACKEND": "Agg"}
+
+
+def student_python(folder):
+    """A Python like a student's, in the new folder ``folder``: a virtual environment with this
+    environment's packages (those of requirements.txt) but not this kit's own (its editable install
+    is not read), so ``instructor`` cannot be imported. Run it with ``kit_env(edition)``: the edition
+    is then on its path, as the edition's own ``pip install -e .`` puts it."""
+    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(folder)], check=True, timeout=300)
+    python = Path(folder) / "bin" / "python"
+    purelib = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                             capture_output=True, text=True, check=True).stdout.strip()
+    Path(purelib, "kit-packages.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
+    (Path(folder) / "share").symlink_to(Path(sys.prefix) / "share")  # Jupyter's data files (nbconvert's templates)
+    return python
 
 
 STEP_THROUGH = r'''

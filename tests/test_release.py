@@ -194,6 +194,49 @@ def test_pyproject_runs_the_notebooks_lax_and_readme_has_the_student_note(editio
     assert "INSTRUCTOR ONLY" not in readme
 
 
+# The student's own tests: those of what a student writes, the "not done yet" messages, and the notebooks.
+STUDENT_TESTS = {"tests/conftest.py", "tests/test_cartpole.py", "tests/test_finite_diff.py", "tests/test_policy_search.py",
+                 "tests/test_logreg.py", "tests/test_todo.py"}
+
+
+def test_the_student_edition_ships_the_tests_of_the_homework_only(edition):
+    """A new test file is instructor-only or a student's test by decision (instructor/kit.py), not by default."""
+    shipped = {name for name in _tree(edition) if name.startswith("tests/")}
+    assert shipped == STUDENT_TESTS
+    left_out = {"instructor", "day_one", "process_watch", "containers", "lab_under_test"}
+    for name in shipped:  # none imports or runs what the edition leaves out (tests/test_student_path.py runs them)
+        text = (edition / name).read_text()
+        imported = {alias.name.split(".")[0] for node in ast.walk(ast.parse(text)) if isinstance(node, ast.Import)
+                    for alias in node.names}
+        imported |= {(node.module or "").split(".")[0] for node in ast.walk(ast.parse(text)) if isinstance(node, ast.ImportFrom)}
+        assert not imported & left_out and '"instructor.' not in text, name
+    pyproject = (edition / "pyproject.toml").read_text()
+    assert re.search(r"^timeout = \d+$", pyproject, re.M)  # every test of the edition has a time limit
+
+
+def test_a_failed_build_leaves_nothing_half_built(tmp_path, monkeypatch):
+    import hwtools.grade
+
+    source = make_kit(tmp_path / "src")
+    out = tmp_path / "out"
+
+    def fails(*args, **kwargs):
+        raise RuntimeError("the reference fails a visible check")
+
+    monkeypatch.setattr(hwtools.grade, "write_answer_key", fails)
+    with pytest.raises(RuntimeError, match="the reference fails"):
+        build_student_edition(source, out)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["src"]  # no out/, no temporary folder beside it
+    build_student_edition(source, out, answer_key=False)
+    before = _tree(out)
+    with pytest.raises(RuntimeError, match="the reference fails"):
+        build_student_edition(source, out, force=True)
+    assert _tree(out) == before and sorted(path.name for path in tmp_path.iterdir()) == ["out", "src"]
+    (source / "hwlib" / "extra.py").write_text("x = 1\n")
+    build_student_edition(source, out, force=True, answer_key=False)  # replaced once the new one is complete
+    assert "hwlib/extra.py" in _tree(out) and sorted(path.name for path in tmp_path.iterdir()) == ["out", "src"]
+
+
 def test_keep_puts_solutions_back_and_everything_kept_equals_the_source(tmp_path):
     everything = frozenset({"1.1.1", "1.1.2", "1.1.3", "1.2.1", "1.3.1", "1.3.2", "1.3.3",
                             "2.1.1", "2.2.1", "2.2.2", "2.2.3", "2.3.1", "2.3.2"})
@@ -289,6 +332,12 @@ def make_kit(root, module=MODULE, notebook_cells=NOTEBOOK_CELLS):
         "build/lib/hwlib/mod.py": "x\n",
         "hwlib.egg-info/PKG-INFO": "x\n",
         "test-artifacts/shot.png": "x\n",
+        # What JupyterLab and editors leave beside the files: never part of the edition.
+        "hwlib/.ipynb_checkpoints/mod-checkpoint.py": MODULE,
+        "notebooks/.ipynb_checkpoints/nb-checkpoint.ipynb": "{}\n",
+        "hwlib/mod.py~": MODULE,
+        "hwlib/.mod.py.swp": "b0VIM\n",
+        "README.md~": "# The kit\nsecret\n",
     }
     for name, text in files.items():
         (root / name).parent.mkdir(parents=True, exist_ok=True)

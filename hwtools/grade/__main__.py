@@ -1,4 +1,4 @@
-"""Command line: ``python -m hwtools.grade [SUBMISSION_DIR] [--reference KIT_DIR] [--json FILE] [--todo ID]``,
+"""Command line: ``python -m hwtools.grade [SUBMISSION_DIR | STUDENT.zip] [--reference KIT_DIR] [--json FILE] [--todo ID]``,
 or for a class ``python -m hwtools.grade SUBMISSIONS_DIR --gradebook grades.csv --feedback FEEDBACK_DIR [--jobs N]``
 (a folder without ``hwlib/``: one folder or .zip per student; see ``classroom``)."""
 
@@ -11,7 +11,9 @@ from pathlib import Path
 
 from hwtools.grade.feedback import render
 from hwtools.grade.grader import ANSWER_KEY, KIT_ROOT, Grader, GradingError, has_solutions
+from hwtools.grade.blocks import load_layout
 from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, limit_own_memory
+from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.todos import TODO_BY_ID
 
 
@@ -22,7 +24,7 @@ def main(argv=None):
                     "never decides its own points: each TODO is checked with the submission's code for that TODO "
                     "and the reference solution for the others.")
     parser.add_argument("submission", nargs="?", default=str(KIT_ROOT),
-                        help="the kit to grade (a folder with hwlib/; default: this kit), or a folder of submissions "
+                        help="the kit to grade (a folder with hwlib/, or one student's .zip; default: this kit), or a folder of submissions "
                              "(one folder or .zip per student, named by student id) with --gradebook and --feedback")
     parser.add_argument("--gradebook", metavar="FILE.csv", help="a class: write the gradebook here (one row per student)")
     parser.add_argument("--feedback", metavar="FOLDER", help="a class: write one Markdown feedback file per student here")
@@ -51,28 +53,43 @@ def main(argv=None):
     if unknown:
         parser.error(f"unknown TODO id(s): {', '.join(unknown)}; the handout's are {', '.join(TODO_BY_ID)}")
     submission = Path(args.submission)
-    if not (submission / "hwlib").is_dir():
+    one_zip = submission.is_file() and submission.suffix.lower() == ".zip"
+    if not (submission / "hwlib").is_dir() and not one_zip:
         if submission.is_dir():
             from hwtools.grade import classroom  # noqa: PLC0415 - a folder of submissions
 
             return classroom.main(args, parser)
-        parser.error(f"{submission}: no hwlib/ folder; give the folder of a kit")
+        parser.error(f"{submission}: neither a kit's folder (with hwlib/), nor a .zip, nor a folder of submissions")
     if args.gradebook or args.feedback:
-        parser.error(f"{submission} is a kit (it has hwlib/); --gradebook and --feedback are for a folder of submissions")
+        what = "one student's zip" if one_zip else "a kit (it has hwlib/)"
+        parser.error(f"{submission} is {what}; --gradebook and --feedback are for a folder of submissions")
     reference = args.reference
     if reference is None and args.answer_key is None and has_solutions(KIT_ROOT):
         reference = KIT_ROOT
     try:
         grader = Grader(reference, answer_key=args.answer_key, python=args.python, isolation=args.isolation,
                         time_limit=args.time_limit, memory_limit=args.memory_limit * 2**20, jobs=args.jobs)
-        result = grader.grade(submission, todos=args.todo)
+        result = grade_zip(grader, submission, args.todo) if one_zip else grader.grade(submission, todos=args.todo)
     except GradingError as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except Unusable as error:
+        print(f"error: {submission}: {error.text}", file=sys.stderr)
         return 2
     sys.stdout.write(render(result, details=not args.brief))
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
     return 0
+
+
+def grade_zip(grader, path, todos=None):
+    """Grade one student's zip, read as a class's zips are read (``submissions.open_submission``)."""
+    layout = grader.layout or load_layout(KIT_ROOT)  # the kit's file names, to know a zip of the bare files
+    with open_submission(path, kit_file_names(layout)) as opened:
+        result = grader.grade(opened.kit, todos=todos)
+    result["submission"] = str(path)
+    result["notes"][:0] = opened.notes
+    return result
 
 
 if __name__ == "__main__":

@@ -134,8 +134,8 @@ def read_submission(root, layout):
                                 "are not used (each TODO is checked inside the kit's own files)")
     package = Path(root) / PACKAGE
     if package.is_dir() and not package.is_symlink():
-        extra = sorted(path.relative_to(root).as_posix() for path in package.rglob("*.py")
-                       if "__pycache__" not in path.parts and path.relative_to(root).as_posix() not in layout.files)
+        extra = sorted(relative for relative in (path.relative_to(root).as_posix() for path in package.rglob("*.py"))
+                       if not markers.is_leftover(relative) and relative not in layout.files)
         if extra:
             submission.notes.append(f"{', '.join(extra[:5])}: not part of the kit; not used")
     present = []
@@ -230,7 +230,8 @@ class KitLayout:
 
 
 def load_layout(root):
-    """Read the ``hwlib`` package of the kit at ``root`` (sources only; caches and links skipped)."""
+    """Read the ``hwlib`` package of the kit at ``root`` (sources only; links and the leftovers of editors,
+    Jupyter and Python, ``markers.is_leftover``, skipped)."""
     root = Path(root)
     package = root / PACKAGE
     if not package.is_dir():
@@ -238,7 +239,7 @@ def load_layout(root):
     files, blocks_by_file, skeletons = {}, {}, {}
     for path in sorted(package.rglob("*.py")):
         relative = path.relative_to(root).as_posix()
-        if "__pycache__" in relative or path.is_symlink():
+        if markers.is_leftover(relative) or path.is_symlink():
             continue
         text = read_text(root, relative)
         files[relative] = text

@@ -43,6 +43,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from hwtools import markers
 from hwtools.grade import blocks
 from hwtools.grade.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
@@ -67,13 +68,14 @@ def _umask():
 
 def find_submissions(folder, skip=()):
     """{student id: [paths]} of the submissions in ``folder``: each folder and each file (a ``.zip``;
-    anything else is listed too, to be reported as unreadable), by name without ``.zip``; names
-    starting with a dot and the paths in ``skip`` (the gradebook, the feedback folder) are left out."""
+    anything else is listed too, to be reported as unreadable), by name without ``.zip``; the leftovers
+    of editors and tools (``markers.is_leftover``: names starting with a dot, ``__MACOSX``, ``*~``, ...)
+    and the paths in ``skip`` (the gradebook, the feedback folder) are left out."""
     folder = Path(folder)
     skip = {os.path.realpath(path) for path in skip}
     found = {}
     for item in sorted(folder.iterdir(), key=lambda item: item.name):
-        if item.name.startswith(".") or item.name == "__MACOSX" or os.path.realpath(item) in skip:
+        if markers.is_leftover(item.name) or os.path.realpath(item) in skip:
             continue
         student = item.name[:-4] if item.name.lower().endswith(".zip") and not item.is_dir() else item.name
         found.setdefault(student, []).append(item)

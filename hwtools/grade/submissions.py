@@ -26,6 +26,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
+from hwtools import markers
 from hwtools.grade import blocks
 from hwtools.grade.safe_text import printable
 
@@ -36,8 +37,6 @@ MAX_SUBMISSION_BYTES = 50 * MB  # all the files taken from one submission togeth
 MAX_FILES = 400  # files taken from one submission
 MAX_ENTRIES = 100_000  # entries of one zip, or files and folders looked at in one submission folder
 KIT_DEPTH = 2  # hwlib/ may sit this many folders below the top of a submission
-# Never looked into: macOS resource forks, caches, virtual environments, version control.
-JUNK_PARTS = {"__MACOSX", "__pycache__", ".git", ".venv", "venv", ".ipynb_checkpoints", "node_modules", ".DS_Store"}
 NOTEBOOKS = "notebooks"
 EMPTY = "empty"  # the status of a submission with nothing in it
 
@@ -69,7 +68,8 @@ class _Entry:
 
 
 def _junk(parts):
-    return any(part in JUNK_PARTS or part.startswith("._") for part in parts)
+    """Never looked into: what editors, Jupyter, Python, macOS and version control leave (``markers.is_leftover``)."""
+    return markers.is_leftover("/".join(parts))
 
 
 CENTRAL_RECORD = b"PK\x01\x02"
