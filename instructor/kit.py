@@ -23,6 +23,7 @@ INSTRUCTOR_ONLY = (
     "tests/test_checks.py",  # grades the wrong and natural solutions against the reference
     "tests/test_classroom.py",  # classes built from the wrong solutions and cheats, graded against the reference
     "tests/test_gradescope.py",
+    "tests/test_clone_location.py",  # copies of this kit run the user fallback's and Gradescope's cases
     "tests/test_student_edition.py",
     "tests/hidden/",
     "tests/wrong_solutions/",
