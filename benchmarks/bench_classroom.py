@@ -5,8 +5,9 @@ Run from the kit's root:  .venv/bin/python benchmarks/bench_classroom.py [--subm
                           [--isolation auto bwrap user none]
 
 ``--isolation`` compares the sandboxes side by side in one run: bubblewrap, the unprivileged-user
-fallback of containers without namespaces (as root; its users are created, and a Python they can
-run is made from the system's, as in the tests), and none.
+fallback of containers without namespaces (as root; its users are created, a Python they can run
+is made from the system's with copies of the packages, as in the tests, and the reference is a
+copy only root may read), and none.
 
 Every submission is a zip (the kit one folder down, as a student zips their folder) whose blocks
 hold the reference's code plus a comment of the submission's own, so that no TODO's kit matches
@@ -49,7 +50,11 @@ def make_class(layout, folder, count, tag):
 
 
 def bench(layout, workdir, count, jobs, isolation="auto", python=None):
-    grader = Grader(KIT, jobs=1, isolation=isolation, python=python)
+    from bench_grading import private_reference  # noqa: PLC0415 - this folder is on the path when run as a script
+
+    # under the user fallback the grader refuses a reference its users can read: a copy only root may enter
+    reference = private_reference(KIT) if isolation == "user" else KIT
+    grader = Grader(reference, jobs=1, isolation=isolation, python=python)
     jobs_tag = f"{jobs}-{isolation}"
     first = make_class(layout, workdir / f"first-{jobs_tag}", 1, f"first{jobs_tag}")
     started = time.perf_counter()

@@ -18,8 +18,13 @@ medians and their ratio. A baseline without the user fallback (09db243 has none)
 that grader's isolated time (the bound of issue 17.8).
 
 ``user`` (the fallback of containers without namespaces) needs root: the pool's users are
-created as ``setup.sh`` creates them, and a Python they can run is made from the system's Python
-with this one's packages (``user_sandbox.runnable_python``).
+created as ``setup.sh`` creates them, a Python they can run is made from the system's Python with
+real copies of this one's packages (``user_sandbox.runnable_python``), and the reference is a
+copy in a folder only root may enter (the grader refuses one the pool's users can read).
+
+``--bound SECONDS`` measures what one submission can cost: every TODO an endless loop, graded with
+that time limit (by this kit, and by the baseline's when given), after the reference's answers.
+The kit's stated bound is ``BUDGET_FACTOR`` x the limit of wall clock for all of a submission's runs.
 
 Numbers depend on the machine and on what else runs on it; the README gives the ones measured
 on the kit's 2-core machine, with the load at the time.
@@ -85,8 +90,9 @@ def serve(kit, isolation, jobs, python):
     A grader that has no ``isolation="user"`` (before the fallback) grades in bubblewrap."""
     from hwtools.grade import Grader, blocks  # noqa: PLC0415 - the hwtools of the kit measured (PYTHONPATH)
 
+    reference = private_reference(kit) if isolation == "user" else kit
     try:
-        grader = Grader(kit, isolation=isolation, jobs=jobs, python=python or None)
+        grader = Grader(reference, isolation=isolation, jobs=jobs, python=python or None)
     except ValueError:  # no such isolation in this grader: its only sandbox
         grader = Grader(kit, isolation="bwrap", jobs=jobs)
     layout = blocks.load_layout(kit)
@@ -111,6 +117,46 @@ def serve(kit, isolation, jobs, python):
         grader.close()
 
 
+def private_reference(kit):
+    """A copy of the reference (``hwlib/`` and the hidden checks) in a folder only root may enter."""
+    import shutil  # noqa: PLC0415
+
+    folder = Path(tempfile.mkdtemp(prefix="bench-reference-"))  # mode 0700
+    for part in ("hwlib", "instructor/hidden_checks"):
+        if (Path(kit) / part).is_dir():
+            shutil.copytree(Path(kit) / part, folder / part, ignore=shutil.ignore_patterns("__pycache__"))
+    return folder
+
+
+ENDLESS = """
+import json, sys, tempfile, time
+from pathlib import Path
+from hwtools.grade import Grader, blocks, checks
+kit = Path(sys.argv[1])
+with tempfile.TemporaryDirectory() as folder, Grader(kit, time_limit=float(sys.argv[2]), jobs=int(sys.argv[3])) as grader:
+    grader.grade(kit, todos=["2.2.1"])  # the reference's servers and answers: once per grader, not the submission's
+    loops = blocks.write_submission(blocks.load_layout(kit), Path(folder) / "loops",
+                                    {todo: "while True:\\n    pass" for todo in checks.GRADED_TODOS})
+    started = time.monotonic()
+    result = grader.grade(loops)
+    print(json.dumps({"seconds": time.monotonic() - started,
+                      "ran": sum(not any("budget" in note for note in entry["notes"]) for entry in result["todos"]
+                                 if entry["id"] in checks.GRADED_TODOS)}))
+"""
+
+
+def bound(kit, baseline, time_limit, jobs):
+    """Seconds to grade a submission whose every TODO loops for ever, by this kit and the baseline."""
+    for name, where in (("this kit", kit), ("baseline", baseline)):
+        if where is None:
+            continue
+        out = subprocess.run([sys.executable, "-c", ENDLESS, str(where), str(time_limit), str(jobs)], cwd=where,
+                             env=dict(os.environ, PYTHONPATH=str(where)), capture_output=True, text=True, check=True)
+        measured = json.loads(out.stdout.strip().splitlines()[-1])
+        print(f"endless loop in every TODO, --time-limit {time_limit:g}, --jobs {jobs}: {name} {measured['seconds']:.1f} s "
+              f"({measured['ran']} of 10 runs ran)", flush=True)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--submissions", type=int, default=5, help="timed submissions per setting (default 5)")
@@ -118,6 +164,7 @@ def main():
     parser.add_argument("--baseline", metavar="REF", help="also measure the grader of this git revision, side by side")
     parser.add_argument("--isolation", nargs="+", default=["bwrap", "user", "none"], choices=["bwrap", "user", "none"])
     parser.add_argument("--jobs", nargs="+", type=int, default=[1], help="worker runs of one submission side by side")
+    parser.add_argument("--bound", type=float, metavar="SECONDS", help="only: a submission of endless loops, this time limit")
     parser.add_argument("--serve", nargs=4, metavar=("KIT", "ISOLATION", "JOBS", "PYTHON"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.serve:
@@ -129,6 +176,10 @@ def main():
     print(f"{os.cpu_count()} CPU(s), load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (a shared machine is noisy)")
     with tempfile.TemporaryDirectory(prefix="bench-grading-") as folder:
         baseline = exported(args.baseline, kit, folder) if args.baseline else None
+        if args.bound:
+            for jobs in args.jobs:
+                bound(kit, baseline, args.bound, jobs)
+            return
         python = user_python(folder) if "user" in args.isolation else ""
         header = f"{'isolation':<10} {'jobs':>4}  {'first (+reference)':>18}  {'median':>16}  {'min':>6}  {'max':>6}"
         print(header + (f"  {'baseline ' + args.baseline:>24}  {'ratio':>6}" if baseline else ""))

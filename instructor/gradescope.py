@@ -32,11 +32,11 @@ import sys
 import zipfile
 from pathlib import Path
 
+from hwtools.grade.user_sandbox import GRADED_PACKAGES as GRADING_REQUIREMENTS  # what hwlib imports in the worker
 from instructor.kit import kit_files
 
 BUNDLED = ("hwlib/", "hwtools/", "instructor/hidden_checks/")  # path prefixes of the kit in the bundle
 LEFT_OUT = ("hwtools/grade/answer_key.json",)  # the student edition's key: the bundle grades with the reference
-GRADING_REQUIREMENTS = ("numpy", "gymnasium")  # what hwlib imports when the grader's worker loads it
 FIXED_TIME = (1980, 1, 1, 0, 0, 0)
 
 SETUP_SH = """\
@@ -68,11 +68,12 @@ chown -R root:root "$ROOT/venv" "$SOURCE"
 chmod -R go-w "$ROOT/venv" "$SOURCE"
 chmod 755 "$ROOT" "$ROOT/venv"
 chmod 700 "$SOURCE"
-# Says in the image build's log which isolation grades the submissions (bwrap, user or none).
+# Says in the image build's log which isolation grades the submissions (bwrap or user); with none,
+# no submission is graded (each gets 0 and "the autograder is misconfigured") until this is fixed.
 "$ROOT/venv/bin/python" -c "
 from hwtools.grade.sandbox import Sandbox
 box = Sandbox('$ROOT/venv/bin/python')
-print('isolation:', box.kind, '-', box.how if box.isolated else 'NOT ISOLATED: ' + box.how)"
+print('isolation:', box.kind, '-', box.how if box.isolated else 'NO SANDBOX, SO NO SUBMISSION WILL BE GRADED: ' + box.how)"
 """
 
 RUN_AUTOGRADER = """\

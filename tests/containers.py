@@ -1,12 +1,22 @@
-"""The two containers the grader meets, simulated on this machine: one where bubblewrap works (this
+"""The containers the grader meets, simulated on this machine: one where bubblewrap works (this
 machine), and Gradescope's, where Docker's default seccomp profile makes bubblewrap fail (a fake
 ``bwrap`` first on PATH fails the same way) and the grader falls back to a user of its own per
-run (the pool's users created as ``setup.sh`` creates them, and a Python those users can run)."""
+run (the pool's users created as ``setup.sh`` creates them, and a Python those users can run, a
+venv of its own with real copies of the packages, wherever this clone lives), and a broken one
+where neither works (``setup.sh`` never ran: the users cannot run the Python).
+
+On Gradescope the only copy of the reference is the bundle's ``source/``, which only root may
+read. Here the clone the tests run from is another copy, which the pool's users could read if it
+lives in a world-readable folder: ``hidden_from_pool`` takes its "other" permission bits away while
+the fallback's tests run (and gives them back), so that what they prove holds wherever the clone
+lives."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -47,3 +57,28 @@ def user_sandbox_python():
     except BaseException:
         shutil.rmtree(folder, ignore_errors=True)
         raise
+
+
+@contextlib.contextmanager
+def hidden_from_pool(folder):
+    """``folder`` (this clone) without its "other" permission bits while the block runs: the pool's
+    users can neither enter nor list it, wherever it lives; the bits are given back after."""
+    folder = Path(folder)
+    mode = folder.stat().st_mode & 0o7777
+    folder.chmod(mode & ~0o007)
+    try:
+        yield folder
+    finally:
+        folder.chmod(mode)
+
+
+def unrunnable_python(folder):
+    """A Python that root can run and the pool's users cannot (it sits in a folder only root may
+    enter): the container where ``setup.sh`` never made a Python for them."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    folder.chmod(0o700)
+    script = folder / "python"
+    script.write_text("#!/bin/sh\nexec " + sys.executable + ' "$@"\n')
+    script.chmod(0o700)
+    return script

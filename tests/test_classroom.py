@@ -152,7 +152,7 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
             made.expect(student, f"rejected: {cheat['links'][0]} is a link; only plain files are read", zero())
             continue
         if cheat["others"] == "reference":
-            (own,) = cheat["bodies"]
+            (own,) = cheat["loses"]
             points = full() | {own: cheat["points"] - (AUTO_POINTS - TODO_BY_ID[own].auto)}
         else:
             assert cheat["points"] == 0
@@ -541,3 +541,61 @@ def test_control_characters_never_reach_the_gradebook_the_feedback_or_the_termin
         assert not [char for char in text if char != "\n" and unicodedata.category(char) in ("Cc", "Cf")], where
         assert "x1b" in text and "2Kbob: graded, 39 of 39" in text, where  # shown, escaped
     assert "rejected: a path that leaves the submission" in shown["gradebook"]
+
+
+# --------------------------------------------------------------------------------------------
+# One submission's failure is its own verdict; file names cannot collide; memory stays bounded
+# --------------------------------------------------------------------------------------------
+
+DEEP = "x = " + "-" * 3000 + "1\nvalues = 1.0 / (1.0 + np.exp(-z))"  # compile() raises RecursionError
+
+
+def test_odd_ids_long_ids_and_a_block_too_deep_to_compile_each_get_their_own_row_and_feedback(layout, grader,
+                                                                                            tmp_path):
+    """Ids that once shared a file (a plain id equal to another's safe name), a 245-character id
+    (its feedback's temporary file name was too long), and a block nested too deeply for Python's
+    compiler (RecursionError escaped the grader): every row and every feedback file is written,
+    each to its own file, and the deep block costs only its TODO."""
+    folder = tmp_path / "submissions"
+    blocks.write_submission(layout, folder / "deep", {"2.2.1": DEEP}, others="reference")
+    (folder / "Ana María").mkdir(parents=True)
+    (folder / "Ana_Mar_a-8358ed27.zip").write_bytes(b"PK\x03\x04" + bytes(100))
+    long_id = "a" * 245
+    (folder / long_id).mkdir()
+    report = classroom.grade_class(folder, tmp_path / "grades.csv", tmp_path / "feedback", grader=grader, jobs=1)
+    _, rows, order = read_gradebook(tmp_path / "grades.csv")
+    assert sorted(order) == sorted(["deep", "Ana María", "Ana_Mar_a-8358ed27", long_id])
+    assert rows["Ana María"]["status"] == "empty" and rows[long_id]["status"] == "empty"
+    assert rows["Ana_Mar_a-8358ed27"]["status"].startswith("unreadable")
+    assert rows["deep"]["status"] == graded(grader) and float(rows["deep"]["auto total (/39)"]) == AUTO_POINTS - 2
+    assert not report.errors, report.errors
+    written = {path.name: path.read_text(encoding="utf-8") for path in (tmp_path / "feedback").glob("*.md")}
+    assert len(written) == 4 and all(len(name) <= 123 for name in written)
+    assert written[f"{submissions.file_name('Ana María')}.md"] != written["Ana_Mar_a-8358ed27.md"]
+    assert "unreadable" in written["Ana_Mar_a-8358ed27.md"] and "empty" in written["~Ana%20Mar%C3%ADa.md"]
+    assert "cannot be compiled (RecursionError: nested too deeply" in written["deep.md"]
+    names = [submissions.file_name(student) for student in ("a", "A", "~a", "%7Ea", "a" * 101, "a" * 100 + "b",
+                                                              "Ana María", "Ana_Mar_a-8358ed27", ".x", "x/y")]
+    assert len(set(names)) == len(names) and all(len(name) <= 119 for name in names)
+
+
+def test_a_class_of_big_answers_keeps_the_grader_under_600_mib(layout, tmp_path, answer_key):
+    """Submissions that answer every case with 8 MB (tests/cheats/big_answers.txt): the grader once
+    kept every run's answers to the class's end (three of them: 1.3 GB). Graded in a fresh process
+    on 2 jobs; its peak memory (VmHWM, the reference servers are processes of their own) stays low."""
+    cheat = proof.parse_cheat(proof.CHEATS / "big_answers.txt")
+    folder = tmp_path / "submissions"
+    for number in range(4):  # each with code of its own: no run is reused
+        own = dict(cheat, bodies={todo: f"{body}\n# big{number}" for todo, body in cheat["bodies"].items()})
+        proof.build_cheat(layout, own, folder / f"big{number}", answer_key)
+    code = ("import json, sys; from hwtools.grade import Grader, classroom; "
+            f"grader = Grader({str(KIT)!r}, time_limit={TIME_LIMIT}, jobs=1); "
+            f"report = classroom.grade_class({str(folder)!r}, {str(tmp_path / 'g.csv')!r}, {str(tmp_path / 'fb')!r}, "
+            "grader=grader, jobs=2); "
+            "peak = [line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM:')][0]; "
+            "print(json.dumps([[s.status for s in report.students], int(peak)]))")
+    run = subprocess.run([sys.executable, "-c", code], cwd=KIT, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    statuses, peak_kib = json.loads(run.stdout.strip().splitlines()[-1])
+    assert len(statuses) == 4 and all(status in ("graded", "not isolated") for status in statuses), statuses
+    assert peak_kib < 600 * 1024, f"the grader peaked at {peak_kib / 1024:.0f} MiB"

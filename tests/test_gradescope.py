@@ -116,11 +116,25 @@ def layout():
 @pytest.fixture(scope="module")
 def docker(tmp_path_factory):
     """The environment of a Docker container where bubblewrap fails: a failing ``bwrap`` first on
-    PATH and a Python the fallback's users can run (setup.sh's venv)."""
+    PATH and a Python the fallback's users can run (setup.sh's venv). This clone is hidden from the
+    pool's users meanwhile: on Gradescope there is no other copy of the reference than source/."""
     folder, python = containers.user_sandbox_python()
     fake = containers.fake_bwrap_folder(tmp_path_factory.mktemp("docker-bin"))
-    yield {"PATH": f"{fake}:{os.environ['PATH']}", "AUTOGRADER_PYTHON": python}
+    with containers.hidden_from_pool(KIT):
+        yield {"PATH": f"{fake}:{os.environ['PATH']}", "AUTOGRADER_PYTHON": python}
     shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.fixture()
+def broken(tmp_path_factory):
+    """A container where no sandbox works: bubblewrap fails and the fallback's users cannot run the
+    Python (setup.sh never ran or failed)."""
+    if os.geteuid() != 0:
+        pytest.skip("the container's users need the grader to run as root")
+    fake = containers.fake_bwrap_folder(tmp_path_factory.mktemp("broken-bin"))
+    python = containers.unrunnable_python(tmp_path_factory.mktemp("root-only") / "bin")
+    with containers.hidden_from_pool(KIT):
+        yield {"PATH": f"{fake}:{os.environ['PATH']}", "AUTOGRADER_PYTHON": str(python)}
 
 
 @pytest.fixture(params=["bwrap", "docker"])
@@ -136,9 +150,10 @@ def container(request):
     return request.getfixturevalue("docker")
 
 
-def autograde(bundle, tmp_path, make_submission, container=None):
+def autograde(bundle, tmp_path, make_submission, container=None, sandbox=None):
     """Lay out ``tmp_path`` as /autograder (the bundle in source/, run_autograder beside it), put a
-    submission in submission/, run run_autograder (in ``container``: environment variables); (results.json, stdout)."""
+    submission in submission/, run run_autograder (in ``container``: environment variables; the
+    ``sandbox`` expected there, default user in a container, bwrap here); (results.json, stdout)."""
     root = tmp_path / "autograder"
     (root / "source").mkdir(parents=True)
     (root / "results").mkdir()
@@ -156,7 +171,9 @@ def autograde(bundle, tmp_path, make_submission, container=None):
     assert result.returncode == 0, result.stderr + result.stdout
     data = json.loads((root / "results" / "results.json").read_text())
     check_results(data)
-    if container:  # Docker's: the fallback graded, and the log and results.json say so
+    if sandbox == "none":  # no sandbox: nothing ran, and the log and results.json say so
+        assert data["extra_data"]["sandbox"] == "none" and "sandbox: none: " in result.stdout, result.stdout
+    elif container:  # Docker's: the fallback graded, and the log and results.json say so
         assert data["extra_data"]["sandbox"] == "user" and "sandbox: user: " in result.stdout, result.stdout
         assert "before results.json was written" in result.stdout
     elif container is not None:
@@ -283,6 +300,27 @@ def test_student_code_never_runs_as_root(bundle, layout, tmp_path, container, an
     submission, cheat = attack("runs_as_root", layout, answer_key)
     data, _ = autograde(bundle, tmp_path, submission, container)
     assert points_tests(data)["2.2.1"]["score"] == 0 and data["score"] == cheat["points"] == 37
+
+
+def test_where_no_sandbox_works_no_student_code_runs_and_results_json_says_the_autograder_is_misconfigured(
+        bundle, layout, tmp_path, broken, answer_key):
+    """Fail closed: the attack that rewrote results.json as root in such a container (score 39)
+    never runs; the student gets 0 and "misconfigured", the instructor the reason and the fix."""
+    submission, _ = attack("results_overwrite", layout, answer_key)
+    marker = Path("/tmp/hwgrade-overwrite-" + hashlib.sha256(str(tmp_path / "autograder").encode()).hexdigest()[:12])
+    try:
+        data, stdout = autograde(bundle, tmp_path, submission, broken, sandbox="none")
+        time.sleep(1.5)
+        assert json.loads((tmp_path / "autograder" / "results" / "results.json").read_text()) == data
+        assert not marker.exists(), "the submission's code ran"
+    finally:
+        marker.unlink(missing_ok=True)
+    assert data["score"] == 0 and all(test["score"] == 0 for test in data["tests"])
+    assert "The autograder is misconfigured" in data["output"] and "not your fault" in data["output"]
+    assert data["extra_data"]["status"].startswith("not graded: the autograder is misconfigured")
+    fix = data["extra_data"]["misconfigured"]
+    assert "bubblewrap" in fix and "python -m hwtools.grade.user_sandbox create" in fix
+    assert "setup.sh" in stdout and "Grading your submission" not in stdout
 
 
 def test_a_wrong_solution_loses_its_own_todo_and_is_told_what_to_fix(bundle, layout, tmp_path):

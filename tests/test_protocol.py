@@ -9,6 +9,7 @@ make, call back only what the call passed, and keep its own records of every epi
 from __future__ import annotations
 
 import io
+import os
 import struct
 import time
 import zipfile
@@ -48,7 +49,7 @@ class FakeServer:
     def __init__(self):
         self.calls, self.pending, self.broken, self.closed, self.sent = [], [], False, False, 0
 
-    def send(self, message):  # numbers its messages, as ReferenceServer.send does
+    def send(self, message, deadline=None):  # numbers its messages, as ReferenceServer.send does
         self.sent += 1
         message = dict(message, n=self.sent)
         self.calls.append(message)
@@ -338,3 +339,148 @@ def test_the_call_schema_takes_numbers_only_and_bounds_them():
     assert served.check_call(sfd, {"f": 1.0, "x": {"__callable__": 0}, "h": 0.1}, {})[0]  # only f may be a function
     big = np.zeros(served.MAX_NUMBERS + 1)
     assert "larger" in served.check_call(served.SERVED_BY_NAME["sigmoid"], {"z": big}, {})[0]
+
+
+# --------------------------------------------------------------------------------------------
+# Deadlines on writes too: a real worker process that stops reading
+# --------------------------------------------------------------------------------------------
+
+SILENT_RUNTIME = '''"""A hostile worker: it answers setup, reads its first case, makes one large served call and
+then never reads again, so the grader's reply fills the pipe."""
+import time
+
+import numpy as np
+
+from . import channel
+
+
+def main(kit_dir, requests, answers):
+    setup = channel.read_message(requests)
+    channel.write_message(answers, {"op": "ready", "re": setup["n"]})
+    channel.read_message(requests)
+    channel.write_message(answers, {"op": "call", "k": 1, "fn": "sigmoid", "args": {"z": np.zeros(%d)}, "state": {}})
+    time.sleep(3600)
+'''
+BIG = 200_000  # numbers: 1.6 MB each way, far more than a pipe holds
+
+
+class BigServer(FakeServer):
+    """A reference server whose answer to a call is as large as the call: BIG numbers."""
+
+    def send(self, message, deadline=None):
+        self.sent += 1
+        self.pending = [{"op": "done", "re": self.sent, "status": "ok", "value": np.zeros(BIG)}]
+        return self.sent
+
+
+def test_a_worker_that_stops_reading_is_killed_at_the_run_s_wall_limit(tmp_path):
+    """The grader's reply to a large served call fills the pipe of a worker that no longer reads: the
+    write ends at the run's deadline (a blocking write waited for ever), the run stops as timed out
+    and the worker is killed."""
+    import threading
+
+    from hwtools.grade import reference, sandbox
+
+    kit = tmp_path / "kit"
+    for relative, text in reference.runtime_files().items():
+        (kit / relative).parent.mkdir(parents=True, exist_ok=True)
+        (kit / relative).write_text(text)
+    (kit / "_hwgrade" / "runtime.py").write_text(SILENT_RUNTIME % BIG)
+    box = sandbox.Sandbox(isolation="none", time_limit=1)
+    pool = FakePool()
+    pool.server = BigServer()
+    process = box.start(kit)
+    ended = []
+    thread = threading.Thread(target=lambda: ended.append(broker.run_cases(
+        process, "2.2.3", [("2.2.3/big/v0", "sigmoid", {"z": np.zeros(BIG)})], [], pool)), daemon=True)
+    started = time.monotonic()
+    thread.start()
+    thread.join(timeout=sandbox.wall_limit(1) + 20)
+    try:
+        assert ended, f"the grader was still writing to a worker that stopped reading after {time.monotonic() - started:.0f} s"
+        outcome, results = ended[0]
+        assert outcome.status == "timeout" and outcome.detail == broker.TIMEOUTS["the wall-clock limit of"]
+        assert time.monotonic() - started < sandbox.wall_limit(1) + 10
+        assert process.process.poll() is not None, "the worker that stopped reading was not killed"
+        assert results == {}
+    finally:
+        if process.process.poll() is None:
+            os.killpg(process.process.pid, 9)
+
+
+def test_an_answer_or_a_served_call_larger_than_its_case_needs_is_refused_before_it_is_kept():
+    """Sizes follow the case: an answer holds at most 4 x its input's numbers + 256, a served call
+    (and the reference's reply) at most 2 x + 1,024; a larger one is refused, not stored."""
+    case = [("2.2.1/values/v0", "sigmoid", {"z": np.zeros(10)})]
+    assert broker.answer_limit(case[0][2]) == 4 * 10 + 256 and broker.call_limit(case[0][2]) == 2 * 10 + 1024
+
+    def big_answer(message, fake):
+        if message["op"] == "case":
+            return [{"op": "result", "re": message["n"], "status": "ok", "values": {"values": np.zeros(297)}}]
+        return answering(sigmoid_values)(message, fake)
+
+    outcome, results = broker.run_cases(FakeWorker(big_answer), "2.2.1", case, [], None)
+    assert outcome.status == "ok" and results[case[0][0]]["values"] == {}
+    assert "far more numbers than this check's input" in results[case[0][0]]["error"]
+    fits = lambda message, fake: [{"op": "result", "re": message["n"], "status": "ok",  # noqa: E731
+                                   "values": {"values": np.zeros(296)}}] if message["op"] == "case" \
+        else answering(sigmoid_values)(message, fake)
+    assert broker.run_cases(FakeWorker(fits), "2.2.1", case, [], None)[1][case[0][0]]["status"] == "ok"
+
+    script, replies = calling(("sigmoid", {"z": np.zeros(2 * 10 + 1025)}, {}), ("sigmoid", {"z": np.zeros(3)}, {}))
+    outcome, _ = broker.run_cases(FakeWorker(script), "2.2.3", case, [], FakePool())
+    assert [r["status"] for r in replies] == ["error", "ok"]
+    assert "larger than the grader serves in this check" in replies[0]["message"]
+
+
+# --------------------------------------------------------------------------------------------
+# The trusted side's work is bounded: judging is linear in what was recorded, with a cap
+# --------------------------------------------------------------------------------------------
+
+
+def real_training_records(copies, iterations=2):
+    """A real 1.3.2 run that follows eq. (4), whose records hold every evaluation at theta +- h e_i
+    ``copies`` times (one seed): the case that made the judge pair every copy with every other."""
+    from hwtools.grade import cartpole_checks
+
+    args = cartpole_checks.make_real_training(np.random.default_rng(0), 0)
+    args["iterations"] = iterations
+    h, rate = args["fd_step"], args["learning_rate"]
+    theta, history, rewards, points, scores = np.asarray(args["initial_params"], dtype=np.float64), [], [0.0], [], []
+    history.append(theta)
+    for t in range(iterations):
+        gradient = np.zeros(4)
+        for i in range(4):
+            step = np.eye(4)[i] * h
+            for _ in range(copies):
+                points += [theta + step, theta - step]
+                scores += [100.0 + i, 90.0]
+            gradient[i] = (100.0 + i - 90.0) / (2 * h)
+        theta = theta + rate * gradient
+        points.append(theta)
+        scores.append(50.0 + t)
+        history.append(theta)
+        rewards.append(50.0 + t)
+    records = broker.Records().arrays() | {
+        "evaluation_params": np.array(points), "evaluation_seeds": np.full(len(points), 7),
+        "evaluation_rollouts": np.full(len(points), args["rollouts"]), "evaluation_values": np.array(scores)}
+    values = {"params_history": np.array(history), "rewards": np.array(rewards), "final_params": theta}
+    return args, {"status": "ok", "values": values, "records": records}
+
+
+def test_the_real_run_judge_of_1_3_2_is_linear_in_its_records_and_capped():
+    from hwtools.grade import cartpole_checks
+
+    args, result = real_training_records(1)
+    assert cartpole_checks.judge_real_rewards(args, result, None, []).passed
+    wrong = dict(result, values=dict(result["values"], rewards=result["values"]["rewards"] + [0, 0, 1]))
+    assert "is no evaluation of theta[2]" in cartpole_checks.judge_real_rewards(args, wrong, None, []).actual
+    args, result = real_training_records(cartpole_checks.MAX_JUDGED_EVALUATIONS // 18)  # just under the cap
+    started = time.process_time()
+    assert cartpole_checks.judge_real_rewards(args, result, None, []).passed
+    assert time.process_time() - started < 2.0, "the judge paired every recorded evaluation with every other"
+    args, result = real_training_records(cartpole_checks.MAX_JUDGED_EVALUATIONS)
+    started = time.process_time()
+    verdict = cartpole_checks.judge_real_rewards(args, result, None, [])
+    assert not verdict.passed and "more than the 2000 this check reads" in verdict.actual
+    assert time.process_time() - started < 2.0

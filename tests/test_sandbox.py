@@ -15,6 +15,7 @@ import os
 import shutil
 import subprocess
 import sys
+import tempfile
 import textwrap
 import threading
 import time
@@ -258,11 +259,15 @@ def test_a_child_that_holds_the_error_stream_does_not_hold_the_grader(mode, requ
     nothing finds it), keeping the worker's standard output and error open for CHILD_SECONDS."""
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent(f"""
+        ready, written = os.pipe()
         if os.fork() == 0:
             os.setsid()
             sys.stderr.write("the child holds stderr\\n")
             sys.stderr.flush()
+            os.close(written)  # the parent answers once this line is written (the run is killed right after)
             os.execve("/bin/sleep", ["sleep", "{CHILD_SECONDS}.25"], {{}})
+        os.close(written)
+        os.read(ready, 1)
         values = np.array([1.0])
     """))
     holder = lambda: live_processes(lambda cmdline: cmdline == f"sleep\0{CHILD_SECONDS}.25\0".encode())  # noqa: E731
@@ -471,3 +476,106 @@ def test_the_orphans_of_a_user_run_are_reaped_so_its_user_can_fork_again(user, t
     assert len(adopted_zombies()) >= 5
     assert reap_adopted_orphans() >= 5
     assert not adopted_zombies()
+
+
+@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+def test_two_runs_of_student_code_never_overlap(mode, request, tmp_path):
+    """Runs started side by side (as a grader's threads start them) take turns: the second one's code
+    starts only after every process of the first one is gone (its child too), so no lock, inotify
+    watch or shared timing can carry anything between them."""
+    box = request.getfixturevalue(mode)
+    kits = [make_kit(tmp_path / name, textwrap.dedent("""
+        started = time.time()
+        if os.fork() == 0:  # a child that would live on, holding a lock
+            import fcntl
+            fcntl.flock(os.open(sys.executable, os.O_RDONLY), fcntl.LOCK_SH)
+            time.sleep(600)
+        time.sleep(1.0)
+        values = np.array([started, time.time()])
+    """)) for name in ("a", "b")]
+    outcomes = [None, None]
+    threads = [threading.Thread(target=lambda index=index: outcomes.__setitem__(index, run(kits[index], box)))
+               for index in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=120)
+    (a_start, a_end), (b_start, b_end) = (values(outcome).tolist() for outcome in outcomes)
+    assert a_end <= b_start or b_end <= a_start, "two runs of student code overlapped"
+
+
+@pytest.mark.hidden  # grades against the instructor's reference
+def test_with_a_reference_and_no_sandbox_no_student_code_runs(monkeypatch, tmp_path):
+    """Fail closed: where neither bubblewrap nor the user fallback works, a grader with a reference
+    (points decided) refuses to run a submission, with the fix; only an explicit isolation="none"
+    runs it (and says NOT ISOLATED), and the instructor's own kit still grades itself."""
+    from hwtools.grade import Grader, GradingError, blocks, classroom
+
+    marker = tmp_path / "ran"
+    layout = blocks.load_layout(KIT)
+    blocks.write_submission(layout, tmp_path / "subs" / "alice", {"2.2.1": (
+        f"open({str(marker)!r}, 'w').close()\nvalues = 1.0 / (1.0 + np.exp(-z))")}, others="reference")
+    sandbox.probe_isolation.cache_clear()
+    user_sandbox.probe.cache_clear()
+    monkeypatch.setattr(sandbox.shutil, "which", lambda name: None)
+    try:
+        grader = Grader(KIT, time_limit=10)
+        assert not grader.sandbox.isolated
+        with pytest.raises(GradingError, match="no sandbox works here.*install bubblewrap.*--isolation none"):
+            grader.grade(tmp_path / "subs" / "alice", todos=["2.2.1"])
+        with pytest.raises(GradingError, match="no sandbox works here"):
+            classroom.grade_class(tmp_path / "subs", tmp_path / "g.csv", tmp_path / "fb", grader=grader, jobs=1)
+        assert not marker.exists(), "the submission's code ran without a sandbox"
+        assert grader.grade(KIT, todos=["2.2.1"])["total"]["auto_earned"] == 2  # the instructor's own code
+        explicit = Grader(KIT, time_limit=10, isolation="none").grade(tmp_path / "subs" / "alice", todos=["2.2.1"])
+        assert marker.exists() and not explicit["isolated"]
+    finally:
+        sandbox.probe_isolation.cache_clear()
+        user_sandbox.probe.cache_clear()
+
+
+@pytest.mark.hidden  # copies the instructor's reference
+def test_the_user_fallback_refuses_to_grade_while_a_pool_user_can_read_the_reference(user_python, tmp_path):
+    """Checked as each pool user: a reference kit in a world-readable folder is refused, with the fix;
+    the same kit behind a folder only root may enter is taken."""
+    from hwtools.grade import Grader, GradingError
+
+    folder = Path(tempfile.mkdtemp(prefix="hwgrade-readable-"))
+    try:
+        folder.chmod(0o755)
+        shutil.copytree(KIT / "hwlib", folder / "kit" / "hwlib", ignore=shutil.ignore_patterns("__pycache__"))
+        shutil.copytree(KIT / "instructor" / "hidden_checks", folder / "kit" / "instructor" / "hidden_checks",
+                        ignore=shutil.ignore_patterns("__pycache__"))
+        assert user_sandbox.readable_by_pool([folder / "kit" / "hwlib" / "logreg.py"])
+        grader = Grader(folder / "kit", python=user_python, isolation="user")
+        with pytest.raises(GradingError, match=r"sandbox's users can read the reference solution .*chmod o-rwx"):
+            grader.grade(tmp_path, todos=["2.2.1"])
+        assert grader.refusal(folder / "kit") is None  # the instructor's own kit may still grade itself
+        (folder / "kit").chmod(0o750)
+        assert not user_sandbox.readable_by_pool([folder / "kit" / "hwlib" / "logreg.py"])
+        assert Grader(folder / "kit", python=user_python, isolation="user").refusal() is None
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.mark.hidden  # grades against the instructor's reference
+def test_a_submission_s_runs_share_a_wall_clock_budget(isolated, tmp_path):
+    """An endless loop in every TODO: the runs take turns and spend the submission's budget
+    (BUDGET_FACTOR x the time limit); once it is spent the remaining TODOs are not run and fail as
+    timed out, so a submission costs at most the budget, not ten runs x the limit."""
+    from hwtools.grade import Grader, blocks, checks
+    from hwtools.grade.grader import BUDGET_FACTOR
+
+    layout = blocks.load_layout(KIT)
+    blocks.write_submission(layout, tmp_path / "loops", {todo: "while True:\n    pass" for todo in checks.GRADED_TODOS})
+    with Grader(KIT, time_limit=2, jobs=2) as grader:
+        grader.grade(KIT, todos=["2.2.1"])  # the reference's answers and servers first: not the submission's time
+        started = time.monotonic()
+        result = grader.grade(tmp_path / "loops")
+        seconds = time.monotonic() - started
+    budget = BUDGET_FACTOR * 2
+    entries = [entry for entry in result["todos"] if entry["id"] in checks.GRADED_TODOS]
+    assert all(entry["status"] == "time limit" for entry in entries), [(e["id"], e["status"]) for e in entries]
+    spent = [entry["id"] for entry in entries if any("time budget was used up" in note for note in entry["notes"])]
+    assert 1 <= len(entries) - len(spent) and len(spent) >= 2, spent  # the first runs ran, the last ones not at all
+    assert seconds < budget + 20, f"{seconds:.0f} s for a budget of {budget:.0f} s"

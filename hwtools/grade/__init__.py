@@ -22,7 +22,8 @@ The result is a JSON-serialisable dict:
   limit, crashed, graded by hand), ``checks`` (what was checked, in words, its points, passed,
   ``failed_on`` visible/hidden), ``first_failure`` (for a visible input: the input, expected and
   actual value; for a hidden one only the check), ``notes`` (what was seen: stopped runs,
-  warnings, code outside the blocks, suspicious calls);
+  warnings, code outside the blocks, suspicious calls); ``grader_error`` only where the grader
+  itself failed on that TODO (it is then not graded, and a class's status says so);
 * ``notes``, ``seconds``.
 
 Modules: ``blocks`` (finding the TODO code, the kits), ``sandbox`` (launching a worker, its limits;

@@ -10,7 +10,7 @@ import sys
 from pathlib import Path
 
 from hwtools.grade.feedback import render
-from hwtools.grade.grader import ANSWER_KEY, KIT_ROOT, Grader, GradingError, has_solutions
+from hwtools.grade.grader import ANSWER_KEY, BUDGET_FACTOR, KIT_ROOT, Grader, GradingError, has_solutions
 from hwtools.grade.blocks import load_layout
 from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, limit_own_memory
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
@@ -37,15 +37,19 @@ def main(argv=None):
     parser.add_argument("--python", help="the Python that runs the homework's code (default: the reference kit's .venv)")
     parser.add_argument("--isolation", choices=("auto", "bwrap", "user", "none"), default="auto",
                         help="auto: bubblewrap where it works, else an unprivileged user per run where that is set up "
-                             "(as root: python -m hwtools.grade.user_sandbox create), else a plain subprocess (the "
-                             "report then says NOT ISOLATED); bwrap, user: refuse to run without that one; none: no sandbox")
+                             "(as root: python -m hwtools.grade.user_sandbox create); with neither, a submission other "
+                             "than the reference kit itself is refused (the student edition's preview runs unsandboxed "
+                             "and says NOT ISOLATED); bwrap, user: refuse to run without that one; none: no sandbox, "
+                             "you accept running untrusted code as yourself")
     parser.add_argument("--time-limit", type=float, default=DEFAULT_TIME_LIMIT, metavar="SECONDS",
-                        help=f"CPU-time limit per TODO's run; the wall clock stops it at 3x + 10 s (default {DEFAULT_TIME_LIMIT:g})")
+                        help=f"CPU-time limit per TODO's run; the wall clock stops it at 3x + 10 s, and a submission's "
+                             f"runs take {BUDGET_FACTOR:g}x at most together (default {DEFAULT_TIME_LIMIT:g})")
     parser.add_argument("--memory-limit", type=int, default=DEFAULT_MEMORY_LIMIT // 2**20, metavar="MIB",
                         help=f"address-space limit per run in MiB (default {DEFAULT_MEMORY_LIMIT // 2**20})")
     parser.add_argument("--jobs", type=int, default=None,
-                        help="one kit: its runs side by side (default: up to 4, one per CPU); a class: submissions "
-                             "graded side by side, one sandbox each (default: one per CPU)")
+                        help="one kit: runs prepared while another executes (default: 2, or 1 on one CPU); a class: "
+                             "submissions read, prepared and judged side by side (default: one per CPU). Student code "
+                             "never runs in two sandboxes at once")
     parser.add_argument("--brief", action="store_true", help="only the table, without the checks of each TODO")
     args = parser.parse_args(argv)
     limit_own_memory()  # the trusted side too: nothing a worker sends can take it past this

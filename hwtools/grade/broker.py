@@ -8,8 +8,12 @@ visible ones first, then, only once each of those is answered, the hidden ones. 
   second answer, a reply to a request never made, a message that does not parse) stops the run:
   the cases not yet answered fail. The stop is told in fixed words (``STOPS``), never a number
   or text of the worker's choosing.
-* an answer must fit its probe's schema (``probes.RESULTS``: names, dtype kinds, dimensions);
-  sizes are bounded by ``channel.py`` before anything is decoded.
+* an answer must fit its probe's schema (``probes.RESULTS``: names, dtype kinds, dimensions) and
+  hold at most ``answer_limit(args)`` numbers (4 x its case's input, plus 256), checked before it is
+  kept; a served call and the reference's reply to it at most ``call_limit(args)`` (2 x the
+  case's input, plus 1,024). A message is bounded by ``channel.py`` before anything is decoded.
+* every write to the worker, like every read, ends at the run's deadline (``Sandbox``): a worker
+  that stops reading while the grader replies is stopped as timed out and killed.
 * the worker's words (errors, warnings) are kept, cut to one line, for visible cases only. Once
   a hidden input was sent, nothing the worker says is kept but the status and numbers of its
   answers, which only the grader's verdict reaches.
@@ -46,7 +50,8 @@ STOPS = {
                  "never made)",
 }
 TIMEOUTS = {"the CPU-time limit": "the CPU-time limit was reached",  # the launcher's words, without its numbers
-            "the wall-clock limit of": "the wall-clock limit was reached (the code waited)"}
+            "the wall-clock limit of": "the wall-clock limit was reached (the code waited)",
+            "the submission's time budget": "the submission's time budget was used up by its earlier runs"}
 _SIGNALS = {9: "killed (a limit was reached)", 24: "the CPU-time limit", 25: "the file-size limit (too much output?)",
             11: "a crash (segmentation fault)", 6: "an abort"}
 
@@ -80,6 +85,7 @@ class Outcome:
     exit_code: int | None = None
     notes: list = field(default_factory=list)
     stderr_tail: str = ""  # the worker's error stream (its prints): for the instructor's debugging, never shown
+    budget: bool = False  # stopped by the submission's time budget (not by this code's own limits)
 
 
 class Records:
@@ -107,6 +113,31 @@ def _error(kind, message):
     return {"status": "error", "type": kind, "message": message}
 
 
+def size(value, depth=0):
+    """How many numbers ``value`` (case arguments, an answer: dicts, lists, arrays, scalars) holds."""
+    if depth > channel.MAX_DEPTH:
+        return 0
+    if isinstance(value, dict):
+        return sum(size(item, depth + 1) for item in value.values())
+    if isinstance(value, (list, tuple)):
+        return sum(size(item, depth + 1) for item in value)
+    if isinstance(value, (np.ndarray, np.generic)):
+        return int(np.size(value))
+    return 1 if isinstance(value, (bool, int, float)) else 0
+
+
+def call_limit(args):
+    """The numbers a served call, or the reference's reply to it, may hold in a case on ``args``:
+    no call a solution makes works on more than its case's data (twice it, for the constant column)."""
+    return 2 * size(args) + 1024
+
+
+def answer_limit(args):
+    """The numbers an answer to a case on ``args`` may hold: every check's answer is at most as
+    large as its input (a policy's actions, a gradient, probabilities), or small (a training run)."""
+    return 4 * size(args) + 256
+
+
 def _integer(value):
     return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
 
@@ -120,6 +151,7 @@ class Conversation:
         self.sent = self.calls = self.callbacks = self.episodes = 0
         self.marks, self.seeds, self.notes = [], set(), []
         self.case_probe, self.case_args, self.records = None, None, Records()
+        self.limit = 0  # numbers a served call may carry in the current case (call_limit)
 
     # ---- the worker ------------------------------------------------------------------
 
@@ -129,6 +161,8 @@ class Conversation:
             self.process.send(dict(message, n=self.sent))
         except OSError:
             raise Stop("ended") from None
+        except channel.ChannelTimeout as timeout:
+            raise _stop(f"timeout:{timeout}") from None
         return self.sent
 
     def ask(self, message, expect):
@@ -157,7 +191,7 @@ class Conversation:
         if entry is None:
             why = self.refused.get(name) if isinstance(name, str) else None
             return _error("NotImplementedError", why or "the grader serves no such function")
-        problem, marks = served.check_call(entry, call.get("args"), call.get("state"))
+        problem, marks = served.check_call(entry, call.get("args"), call.get("state"), self.limit)
         if problem:
             return _error("TypeError", problem)
         if self.calls > MAX_CALLS:
@@ -176,6 +210,8 @@ class Conversation:
             if name == "eval_params" and reply["status"] == "ok":
                 self._evaluation(args, reply)
             reply.pop("episodes", None)
+            if reply["status"] == "ok" and size([reply["value"], reply["state"]]) > self.limit:
+                return _error("RuntimeError", f"the answer of {entry.where} is larger than this check needs")
             return reply
         finally:
             self.marks.pop()
@@ -237,7 +273,7 @@ class Conversation:
                 return _error("RuntimeError", "the grader's reference could not answer this call")
         server, finished = self.server, False
         try:
-            number = server.send({"op": "call", "fn": entry.name, "args": args, "state": state})
+            number = server.send({"op": "call", "fn": entry.name, "args": args, "state": state}, self.process.deadline)
             while True:
                 message = server.receive(self.process.deadline)
                 if message.get("op") == "done" and message.get("re") == number:
@@ -245,7 +281,8 @@ class Conversation:
                     break
                 if message.get("op") != "callback":
                     raise ServerFailed("out of turn")
-                server.send({"op": "callback-result", "re": message.get("k"), **self._callback(message)})
+                server.send({"op": "callback-result", "re": message.get("k"), **self._callback(message)},
+                            self.process.deadline)
         except ServerTimeout:
             raise Stop("timeout") from None
         except ServerFailed:
@@ -280,9 +317,10 @@ class Conversation:
             self.server = None
 
 
-def accept(reply, probe, hidden):
-    """A worker's ``result`` as the judges see it: checked against the probe's schema; text only
-    for visible cases (one line each, cut)."""
+def accept(reply, probe, hidden, limit=None):
+    """A worker's ``result`` as the judges see it: checked against the probe's schema and, with
+    ``limit``, its size (``answer_limit``) before anything is kept; text only for visible cases
+    (one line each, cut)."""
     status = reply.get("status")
     values = reply.get("values")
     schema = probes.RESULTS.get(probe, {})
@@ -292,6 +330,9 @@ def accept(reply, probe, hidden):
                 isinstance(values[name], np.ndarray) and values[name].dtype.kind in kinds and values[name].ndim in ndims
                 for name, (kinds, ndims) in schema.items()):
             result["error"] = "the answer does not have the values this check reads (their names, types and shapes)"
+            return result
+        if limit is not None and size(values) > limit:
+            result["error"] = "the answer holds far more numbers than this check's input (more than it reads)"
             return result
         result.update(status="ok", values=dict(values))
     elif not hidden:
@@ -323,8 +364,9 @@ def run_cases(process, todo, visible, hidden, pool):
             outcome.phase = phase
             for case_id, probe, args in cases:
                 conversation.case_probe, conversation.case_args, conversation.records = probe, args, Records()
+                conversation.limit = call_limit(args)
                 reply = conversation.ask({"op": "case", "id": case_id, "probe": probe, "args": args}, "result")
-                results[case_id] = accept(reply, probe, phase == "hidden")
+                results[case_id] = accept(reply, probe, phase == "hidden", answer_limit(args))
                 results[case_id]["records"] = conversation.records.arrays()
         outcome.phase = "done"
         try:
@@ -333,9 +375,12 @@ def run_cases(process, todo, visible, hidden, pool):
             pass
     except Stop as stop:
         outcome.status, timeout = stop.status, stop.detail
+        outcome.budget = stop.detail == TIMEOUTS["the submission's time budget"]
     finally:
         conversation.release(broken=outcome.status != "ok")
-        outcome.exit_code, outcome.stderr_tail, outcome.seconds = process.finish(graceful=outcome.status == "ok")
+        # killed at once even when it answered everything: the next run begins only when every process
+        # of this one is gone, and an interpreter's own exit takes longer than a kill
+        outcome.exit_code, outcome.stderr_tail, outcome.seconds = process.finish(graceful=False)
         outcome.notes = list(dict.fromkeys(conversation.notes))
     if outcome.status == "ended":
         outcome.detail = _ended(outcome.exit_code, outcome.phase)

@@ -285,8 +285,23 @@ def make_real_training(rng, variant):
             "fd_step": 0.35, "seed": int(rng.integers(0, 1000)), "initial_params": rng.normal(size=4) * 0.05}
 
 
+MAX_JUDGED_EVALUATIONS = 2_000  # recorded evaluations a real run's judge reads (an honest run of 2 iterations makes 18)
+
+
 def _at(points, target):
-    return [index for index, point in enumerate(points) if np.allclose(point, target, rtol=1e-12, atol=1e-12)]
+    """The indices (ascending) of the rows of ``points`` equal to ``target`` within 1e-12 (one pass)."""
+    if len(points) == 0:
+        return np.zeros(0, dtype=np.int64)
+    return np.flatnonzero(np.all(np.isclose(points, np.asarray(target, dtype=np.float64), rtol=1e-12, atol=1e-12),
+                                 axis=1))
+
+
+def _first_by_seed(indices, seeds, scores):
+    """{seed: {score: the first index with it}} of the evaluations ``indices`` (ascending)."""
+    found = {}
+    for index in indices.tolist():
+        found.setdefault(int(seeds[index]), {}).setdefault(float(scores[index]), index)
+    return found
 
 
 def judge_real_rewards(args, result, expected, services):
@@ -303,22 +318,40 @@ def judge_real_rewards(args, result, expected, services):
     if wrong_rollouts:
         return Verdict(False, want, wrong_rollouts)
     points, seeds, scores = records["evaluation_params"], records["evaluation_seeds"], records["evaluation_values"]
+    if len(points) > MAX_JUDGED_EVALUATIONS:
+        return Verdict(False, want, f"{len(points)} evaluations of eval_params in {len(rewards) - 1} iteration(s), more "
+                                    f"than the {MAX_JUDGED_EVALUATIONS} this check reads")
     h, rate = args["fd_step"], args["learning_rate"]
     for t in range(1, len(rewards)):
         latest = -1
         for i in range(4):
             offset = np.zeros(4)
             offset[i] = h
-            pairs = [(a, b) for a in _at(points, history[t - 1] + offset) for b in _at(points, history[t - 1] - offset)
-                     if seeds[a] == seeds[b]]
-            good = [(a, b) for a, b in pairs
-                    if _close(history[t][i], history[t - 1][i] + rate * ((scores[a] - scores[b]) / (2.0 * h)), 1e-9, 1e-9)]
-            if not good:
-                found = "no evaluations at theta[t-1] +- h e_i" if not pairs else \
-                    f"evaluations there give theta[{t}][{i}] = {show(history[t - 1][i] + rate * (scores[pairs[0][0]] - scores[pairs[0][1]]) / (2.0 * h))}"
+            # A pair (a at theta + h e_i, b at theta - h e_i, one seed) is good when its difference gives
+            # theta[t][i]; the judge needs the good pair whose later evaluation comes first. Evaluations
+            # of one seed with one score are the same for it: the first of each is enough (linear time).
+            plus = _first_by_seed(_at(points, history[t - 1] + offset), seeds, scores)
+            minus = _first_by_seed(_at(points, history[t - 1] - offset), seeds, scores)
+            first_pair, best = None, None
+            for seed, by_score in plus.items():
+                if seed not in minus:
+                    continue
+                b_scores = np.array(list(minus[seed]), dtype=np.float64)
+                b_first = np.array(list(minus[seed].values()), dtype=np.int64)
+                for a_score, a in by_score.items():
+                    if first_pair is None or (a, int(b_first.min())) < first_pair:
+                        first_pair = (a, int(b_first.min()), a_score, float(b_scores[np.argmin(b_first)]))
+                    moved = history[t - 1][i] + rate * ((a_score - b_scores) / (2.0 * h))
+                    good = np.flatnonzero(np.abs(history[t][i] - moved) <= 1e-9 + 1e-9 * np.abs(moved))
+                    if good.size:
+                        later = int(np.min(np.maximum(a, b_first[good])))
+                        best = later if best is None else min(best, later)
+            if best is None:
+                found = "no evaluations at theta[t-1] +- h e_i" if first_pair is None else \
+                    f"evaluations there give theta[{t}][{i}] = {show(history[t - 1][i] + rate * (first_pair[2] - first_pair[3]) / (2.0 * h))}"
                 return Verdict(False, want, f"theta[{t}][{i}] = {show(history[t][i])}: {found}")
-            latest = max(latest, min(max(pair) for pair in good))
-        after = [index for index in _at(points, history[t]) if index > latest and scores[index] == rewards[t]]
+            latest = max(latest, best)
+        after = [index for index in _at(points, history[t]).tolist() if index > latest and scores[index] == rewards[t]]
         if not after:
             return Verdict(False, want, f"rewards[{t}] = {show(rewards[t])} is no evaluation of theta[{t}] made after "
                                         "its update")

@@ -23,7 +23,9 @@ import io
 import json
 import os
 import re
+import select
 import struct
+import time
 import zipfile
 import zlib
 
@@ -43,6 +45,11 @@ _MARKERS = ("__array__", "__scalar__")
 
 class MessageError(ValueError):
     """A message that is not one this module writes: refused as a whole."""
+
+
+class ChannelTimeout(Exception):
+    """A write that did not end by its deadline: the other side stopped reading (or the run's time
+    was up). The message says which limit, in the grader's words."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -226,11 +233,23 @@ def fingerprint(message):
 # --------------------------------------------------------------------------------------------
 
 
-def write_message(fd, message):
+def write_message(fd, message, deadline=None):
+    """Write ``message`` on ``fd``. With ``deadline`` (monotonic seconds; ``fd`` must then be
+    non-blocking) the write ends by then or raises ChannelTimeout: a reader that stops reading
+    cannot hold the writer. Without one (the sandboxed side) it blocks."""
     data = pack(message)
     view = memoryview(struct.pack(">Q", len(data)) + data)
     while view:
-        written = os.write(fd, view)
+        if deadline is not None:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise ChannelTimeout("the wall-clock limit was reached (the other side stopped reading)")
+            if not select.select([], [fd], [], remaining)[1]:
+                continue
+        try:
+            written = os.write(fd, view)
+        except BlockingIOError:
+            continue
         view = view[written:]
 
 

@@ -14,8 +14,10 @@ it), and the student's code then runs only in the grader's sandbox. This module 
 it grades the submissions, saves each result, and writes the gradebook (``gradebook.py``) and
 the feedback (``class_feedback.py``), with a progress line (``progress.py``).
 
-Submissions are graded side by side (``--jobs``, default one per CPU), each in its own sandbox,
-by ONE ``Grader``: the reference's answers are computed once for the class. Each student's
+Submissions are read, prepared and judged side by side (``--jobs``, default one per CPU) by ONE
+``Grader`` (the reference's answers are computed once for the class), while their student code
+runs one run at a time, each in its own sandbox (``sandbox.py``: no two runs of student code, of
+one submission or of two, overlap). Each student's
 result is saved as it finishes (``.<gradebook name>-state/<student>.json`` next to the
 gradebook, keyed by a hash of the submission's files and of everything that decides the
 points: the reference, the hidden checks, the grader's code and its limits), so an
@@ -23,11 +25,15 @@ interrupted run resumes where it stopped, and a rerun grades only what changed (
 folder to grade everything again). The gradebook holds no time stamps: grading the same folder
 twice writes the same bytes.
 
-Time limits: the grader runs each TODO of a submission as one sandboxed run, and ``--time-limit``
-bounds each run's CPU time (a wall-clock backstop of 3x + 10 s ends code that only waits, so a
-busy machine slows runs without timing them out). Code that never ends costs that limit once per
-TODO it hangs in; that TODO gets 0, the others keep their points, and the status says
-``timed out: <TODOs>``.
+Time limits: the grader runs each TODO of a submission as one sandboxed run (10 runs), and
+``--time-limit`` L bounds each run's CPU time (a wall-clock backstop of 3L + 10 s ends code that only
+waits, so a busy machine slows runs without timing them out); all runs of one submission take at
+most ``BUDGET_FACTOR`` x L of wall clock together, after which the TODOs not yet run fail as timed
+out. Code that never ends costs its TODO; the others keep their points, and the status says
+``timed out: <TODOs>``. Any failure while reading or grading one submission is that submission's
+row (``grader error: ...`` when it is the grader's own, not saved, so a rerun tries it again); the
+class goes on, and every feedback file is written (``submissions.file_name``: bounded and
+collision-free names). Without a sandbox no submission is graded (``Grader.refusal``).
 """
 
 from __future__ import annotations
@@ -35,7 +41,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import re
 import sys
 import tempfile
 import time
@@ -49,7 +54,7 @@ from hwtools.grade.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
 from hwtools.grade.gradebook import StudentResult, gradebook_text, status_of
 from hwtools.grade.progress import Progress
-from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
+from hwtools.grade.submissions import Unusable, file_name, kit_file_names, open_submission
 
 STATE_VERSION = 1
 
@@ -110,7 +115,7 @@ class StateStore:
         return hashlib.sha256(f"{self.fingerprint}\0{digest}".encode()).hexdigest()
 
     def _path(self, student):
-        return self.folder / f"{_safe_name(student)}.json"
+        return self.folder / f"{file_name(student)}.json"
 
     def load(self, student, digest):
         try:
@@ -126,15 +131,6 @@ class StateStore:
         data = {"version": STATE_VERSION, "student": student, "key": self.key(digest), "status": status,
                 "notes": notes, "result": result}
         _write_atomically(self._path(student), json.dumps(data, indent=1, sort_keys=True) + "\n")
-
-
-def _safe_name(student):
-    """A file name for the student's files: the id itself where it is plain, else the id with the
-    other characters replaced and a short hash of it (two ids never share a file)."""
-    name = re.sub(r"[^A-Za-z0-9._@+-]", "_", student)
-    if name == student and name.strip("."):
-        return name
-    return f"{name}-{hashlib.sha256(student.encode()).hexdigest()[:8]}"
 
 
 def _write_atomically(path, text):
@@ -176,7 +172,7 @@ def grade_one(grader, path, student, kit_names, store=None):
                     return StudentResult(student, saved["status"], saved["result"], saved["notes"], reused=True)
             result = _public(grader.grade(opened.kit), student)
             status = status_of(result)
-            if store is not None:
+            if store is not None and "grader error" not in status:  # a grader's own failure is tried again
                 store.save(student, opened.digest, status, result, opened.notes)
             return StudentResult(student, status, result, opened.notes, seconds=time.monotonic() - started)
     except Unusable as unusable:
@@ -226,7 +222,8 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     """Grade every submission in the folder ``submissions`` against ``reference`` (the instructor's
     kit) and write the gradebook CSV ``gradebook`` and one Markdown file per student in ``feedback``.
 
-    ``jobs``: submissions graded side by side (default: one per CPU), each in its own sandbox.
+    ``jobs``: submissions read, prepared and judged side by side (default: one per CPU); their runs of
+    student code take turns (``sandbox.py``).
     ``grader``: a ``Grader`` to use (its reference answers are computed once, for the whole
     class); else one is made with ``grader_options`` (python, isolation, time_limit,
     memory_limit). ``progress``: a text stream for the progress line (None: silent). Returns a
@@ -245,6 +242,9 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     if grader.reference is None:
         raise GradingError("grading a class needs the instructor's kit as the reference, not an answer key: "
                            "the hidden checks decide points too")
+    refused = grader.refusal()
+    if refused:  # fail closed: no sandbox, no student code
+        raise GradingError(refused)
     state = state_folder(gradebook)
     store = StateStore(state, grading_fingerprint(grader))
     found = find_submissions(submissions, skip=(gradebook, feedback, state))
@@ -258,12 +258,14 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
 
     def task(student):
         try:
-            return grade_one(grader, found[student], student, kit_names, store)
+            student_result = grade_one(grader, found[student], student, kit_names, store)
         except GradingError:
             raise
-        except Exception as error:  # noqa: BLE001 - one submission's grading fault must not stop the class
-            errors.append(f"{student}: {type(error).__name__}: {error}")
-            return StudentResult(student, f"grader error: {type(error).__name__}: {error}")
+        except Exception as error:  # noqa: BLE001 - one submission's failure is its own row, the class goes on
+            student_result = StudentResult(student, f"grader error: {type(error).__name__}: {str(error)[:300]}")
+        if student_result.status.startswith("grader error") or "; grader error" in student_result.status:
+            errors.append(f"{student}: {student_result.status}")
+        return student_result
 
     pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="hwclass")
     try:
@@ -286,7 +288,11 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     _write_atomically(gradebook, gradebook_text(results))
     feedback.mkdir(parents=True, exist_ok=True)
     for student_result in results:
-        _write_if_changed(feedback / f"{_safe_name(student_result.student)}.md", feedback_markdown(student_result))
+        try:
+            _write_if_changed(feedback / f"{file_name(student_result.student)}.md", feedback_markdown(student_result))
+        except Exception as error:  # noqa: BLE001 - one student's file must not cost the others theirs
+            errors.append(f"{student_result.student}: the feedback file could not be written "
+                          f"({type(error).__name__}: {error})")
     report = ClassReport(results, gradebook, feedback, state, errors=errors)
     for student_result in results:
         if student_result.result is None:

@@ -39,9 +39,12 @@ class StudentResult:
 
 
 def status_of(result):
-    """The gradebook's status of a graded result."""
+    """The gradebook's status of a graded result: TODOs that timed out, TODOs the grader failed on
+    (``grader_error``: not saved, a rerun tries again), and whether it ran unsandboxed."""
     timed_out = [entry["id"] for entry in result["todos"] if entry["status"] == "time limit"]
+    failed = [entry["id"] for entry in result["todos"] if entry.get("grader_error")]
     parts = [f"timed out: {', '.join(timed_out)}"] if timed_out else []
+    parts += [f"grader error: {', '.join(failed)}"] if failed else []
     if not result["isolated"]:
         parts.append(NOT_ISOLATED)
     return "; ".join(parts) or GRADED

@@ -17,6 +17,7 @@ same runs, so the preview gives the instructor's verdict wherever the other TODO
 
 from __future__ import annotations
 
+import copy
 import hashlib
 import importlib.util
 import os
@@ -33,12 +34,13 @@ from hwtools.grade import blocks, broker, checks, judging
 from hwtools.grade.answer_key import ANSWER_KEY
 from hwtools.grade.channel import fingerprint
 from hwtools.grade.reference import ReferencePool, ServerFailed, runtime_files
-from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Sandbox
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Budget, Sandbox
 from hwtools.todos import TODO_BY_ID, TODOS
 
 KIT_ROOT = Path(__file__).resolve().parents[2]
 HIDDEN_CHECKS = Path("instructor") / "hidden_checks" / "__init__.py"
 SERVICE_TIME_LIMIT = 900.0  # the reference's own runs (re-scoring, the notebook's training run)
+BUDGET_FACTOR = 4.0  # a submission's runs take at most this many time limits of wall clock together
 NOT_SERVED = ("1.3.3",)  # blocks the reference server keeps as stubs: the learning rate is 1.3.3's answer
 __all__ = ["ANSWER_KEY", "KIT_ROOT", "HIDDEN_CHECKS", "Grader", "GradingError", "has_solutions", "read_answer_key",
            "write_answer_key"]
@@ -100,16 +102,22 @@ class Grader:
 
     ``reference``: the instructor's kit (a folder whose ``hwlib`` has the solution blocks, style SOLUTION),
     or None for the answer key of a student edition (``answer_key``, default next to this module).
-    ``isolation``: "auto", "bwrap" or "none" (see ``Sandbox``). ``time_limit``: seconds of wall
-    clock (and CPU) per worker run of a TODO; ``memory_limit``: bytes of address space.
-    ``jobs``: worker runs of one submission side by side. Thread-safe: several submissions may be
-    graded at once with one Grader. ``close()`` (or ``with Grader(...) as grader``) ends its
-    reference servers; idle ones end by themselves after a few seconds.
+    ``isolation``: "auto", "bwrap", "user" or "none" (see ``Sandbox``); with a reference, "auto"
+    never falls back to no sandbox (``grade`` refuses a submission other than the reference kit
+    itself); only an explicit "none" runs students' code unsandboxed. ``time_limit``: CPU
+    seconds per worker run of a TODO (the wall clock stops it at 3x + 10 s); ``memory_limit``:
+    bytes of address space; ``budget``: wall-clock seconds all runs of one submission may take
+    together (default ``BUDGET_FACTOR`` x ``time_limit``), after which its remaining TODOs are not
+    run and fail as timed out. ``jobs``: threads per submission: one run executes while the
+    others prepare their sandboxes (no two runs of student code overlap, ``sandbox.py``), and
+    judging runs alongside. Thread-safe: several submissions may be graded at once with one
+    Grader. ``close()`` (or ``with Grader(...) as grader``) ends its reference servers; idle ones
+    end by themselves after a few seconds.
     """
 
     def __init__(self, reference=None, answer_key=None, python=None, isolation="auto",
                  time_limit=DEFAULT_TIME_LIMIT, memory_limit=DEFAULT_MEMORY_LIMIT, jobs=None,
-                 service_time_limit=SERVICE_TIME_LIMIT):
+                 service_time_limit=SERVICE_TIME_LIMIT, budget=None):
         self.reference = Path(reference).resolve() if reference is not None else None
         if self.reference is not None:
             if not has_solutions(self.reference):
@@ -133,7 +141,10 @@ class Grader:
             except keys.AnswerKeyError as error:
                 raise GradingError(str(error)) from None
         self.sandbox = Sandbox(python or default_python(self.reference), isolation, time_limit, memory_limit)
-        self.jobs = max(1, int(jobs or min(4, os.cpu_count() or 1)))
+        self.isolation = isolation
+        self._exposed = None  # under the user fallback: the reference's files a pool user can read (checked once)
+        self.budget = float(budget) if budget is not None else BUDGET_FACTOR * self.sandbox.time_limit
+        self.jobs = max(1, int(jobs or min(2, os.cpu_count() or 1)))  # one run executes, one is prepared
         self.service_time_limit = float(service_time_limit)
         self._memo, self._memo_lock = {}, threading.Lock()
         self._scrub = judging.Scrubber(self.reference_bodies)
@@ -143,6 +154,20 @@ class Grader:
             server = {todo: bodies for todo, bodies in self.reference_bodies.items() if todo not in NOT_SERVED}
             self.pool = ReferencePool(self.sandbox, blocks.composite_files(self.layout, server, set()))
             self._finalizer = weakref.finalize(self, ReferencePool.close, self.pool)
+
+    def _exposure(self):
+        """Under the user fallback students' code runs as the pool's users and sees every file they may
+        read: the reference's files (its solutions, the hidden checks) one of them can open, tried as
+        each of them (once per grader); empty otherwise."""
+        if self._exposed is None:
+            self._exposed = []
+            if self.reference is not None and self.sandbox.kind == "user":
+                from hwtools.grade.user_sandbox import readable_by_pool  # noqa: PLC0415 - the fallback only
+
+                secret = [self.reference / relative for relative in self.layout.blocks_by_file]
+                secret += [self.reference / HIDDEN_CHECKS] if (self.reference / HIDDEN_CHECKS).is_file() else []
+                self._exposed = readable_by_pool(secret)
+        return self._exposed
 
     def close(self):
         """End the reference servers (a later ``grade`` starts new ones)."""
@@ -165,6 +190,9 @@ class Grader:
         Returns a JSON-serialisable dict (see ``hwtools.grade`` for its fields)."""
         started = time.monotonic()
         submission = Path(submission).resolve()
+        refused = self.refusal(submission)
+        if refused:
+            raise GradingError(refused)
         selected = [todo.id for todo in TODOS if todos is None or todo.id in todos]
         unknown = sorted(set(todos or ()) - set(TODO_BY_ID))
         if unknown:
@@ -183,27 +211,29 @@ class Grader:
             except blocks.SubmissionError as error:
                 layout = None
                 result["notes"].append(f"the submission cannot be read: {error}")
-        if layout is not None:
+        try:
+            if layout is None:
+                raise blocks.SubmissionError("no hwlib/ folder")
             read = blocks.read_submission(submission, layout)
-        else:
-            read = blocks.Submission(submission, problems={todo: "no hwlib/ folder" for todo in TODO_BY_ID})
+        except Exception as error:  # noqa: BLE001 - one submission's failure is its own verdict
+            why = str(error) if isinstance(error, blocks.SubmissionError) else _failure("read", error)
+            read = blocks.Submission(submission, problems={todo: why for todo in TODO_BY_ID})
         if self.reference is not None:  # without a reference the submission's own files are what runs
             result["notes"].extend(read.notes)
         pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
         graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
+        budget = Budget(self.budget)
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:
-                runs = dict(zip(graded, executor.map(lambda todo: self._run_todo(todo, read, layout, pool), graded)))
-            needed = [need for todo in graded for need in self._service_requests(todo, runs[todo])]
-            services = self._services(needed, pool)
+                entries = dict(zip(graded, executor.map(
+                    lambda todo: self._todo_entry(todo, read, layout, pool, budget), graded)))
         finally:
             if pool is not None and pool is not self.pool:
                 pool.close()
         limits = (self.sandbox.time_limit, self.sandbox.memory_limit / 2**20)
         for todo in selected:
-            result["todos"].append(judging.judge_todo(todo, runs.get(todo), services, self.cases.get(todo),
-                                                      self._expected, self._scrub, limits,
-                                                      judging.seen(todo, read, layout)))
+            result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
+                                                                           self._scrub, limits, []))
         entries = result["todos"]
         result["total"] = {
             "auto_earned": round(sum(entry["auto_earned"] for entry in entries), 2),
@@ -213,10 +243,34 @@ class Grader:
         result["seconds"] = round(time.monotonic() - started, 2)
         return result
 
+    def refusal(self, submission=None):
+        """Why no code of ``submission`` (None: any submission) may run here, or None. Fail closed:
+        with a reference (points decided), only the reference kit itself (the instructor's own code)
+        runs where "auto" found no sandbox (any other submission needs one, or an explicit
+        isolation="none"), or where the user fallback's users could read the reference. The student
+        edition's preview (no reference: the student's own code, no hidden input) runs without a
+        sandbox, and its report says so on its first line."""
+        if self.reference is None or (submission is not None and Path(submission).resolve() == self.reference):
+            return None
+        if not self.sandbox.isolated and self.isolation != "none":
+            return (f"no sandbox works here, so no student code is run ({self.sandbox.how}). Fix the machine: install "
+                    "bubblewrap (apt-get install bubblewrap), or, where it cannot create namespaces, as root create the "
+                    "fallback's users (python -m hwtools.grade.user_sandbox create) and give a Python they can run "
+                    "(python -m hwtools.grade.user_sandbox python FOLDER, then --python FOLDER/bin/python); or pass "
+                    "--isolation none to accept running untrusted code as yourself")
+        exposed = self._exposure()
+        if exposed:
+            return (f"the sandbox's users can read the reference solution ({exposed[0]}, and {len(exposed) - 1} more "
+                    f"file(s)): under the user fallback students' code runs as those users, so it could read it too. "
+                    f"Fix: chmod o-rwx {self.reference} (or keep the kit in a folder only root may enter, such as one "
+                    "made by mktemp -d), then grade again")
+        return None
+
     # ---- running ------------------------------------------------------------------------
 
     def _parsed_bodies(self, todo, read, layout):
-        """The student's blocks for ``todo``, or a string saying why they cannot be used."""
+        """The student's blocks for ``todo``, or a string saying why they cannot be used (a block that
+        does not parse, or that the compiler cannot take: nested too deeply, too large)."""
         if todo in read.problems:
             return read.problems[todo]
         if todo not in read.bodies:  # the kit it was read with has no block of this TODO
@@ -225,7 +279,10 @@ class Grader:
         module_level = any(block.module_level for file_blocks in layout.blocks_by_file.values()
                            for block in file_blocks if block.todo == todo)
         for body in read.bodies[todo]:
-            problem = blocks.check_body(body, module_level)
+            try:
+                problem = blocks.check_body(body, module_level)
+            except (RecursionError, MemoryError, ValueError, OverflowError) as error:
+                return _failure("compile", error, todo)
             if problem:
                 return f"your code for TODO {todo} does not parse ({problem})"
         return read.bodies[todo]
@@ -250,26 +307,54 @@ class Grader:
                 own[todo] = bodies
         return ReferencePool(self.sandbox, blocks.composite_files(layout, own, set()), idle=1.0, trusted=False)
 
-    def _run_todo(self, todo, read, layout, pool):
-        """{"student": (Outcome, results by case id) or a reason string, "reference": {case id: values} or None}."""
-        files = self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
-        student = self._run(todo, files, pool) if isinstance(files, dict) else files
-        reference = self._reference_values(todo) if self.reference is not None else None
-        return {"student": student, "reference": reference}
+    def _todo_entry(self, todo, read, layout, pool, budget):
+        """The judged result entry of ``todo``: its run (memoized per grader as the entry it gave, so
+        that a kit already run is not run again and no run's answers are kept once judged), the
+        reference's values, the services its judges need. Any failure becomes the entry's verdict."""
+        limits = (self.sandbox.time_limit, self.sandbox.memory_limit / 2**20)
+        try:
+            notes = judging.seen(todo, read, layout)
+        except Exception:  # noqa: BLE001 - what the code reaches for is a note; a block too deep to parse has none
+            notes = []
+        try:
+            files = self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
+            if isinstance(files, str):
+                return self._judge(todo, {"student": files, "reference": self._reference_of(todo)}, pool, notes)
+            cases = self.cases[todo]
+            key = _digest(blocks.files_digest(files), pool.digest if pool else "", todo,
+                          *[fingerprint({"id": case_id, "args": args}) for case_id, _, args in cases.visible + cases.hidden],
+                          len(cases.visible), self.sandbox.time_limit)
+            return copy.deepcopy(self._memoized(key, lambda: self._run_and_judge(todo, files, pool, budget, notes),
+                                                keep=lambda entry: not entry.pop("_budget", False)))
+        except GradingError:
+            raise
+        except Exception as error:  # noqa: BLE001 - one TODO's failure is its own verdict, the others are graded
+            entry = judging.judge_todo(todo, {"student": _failure("grade", error), "reference": None}, {},
+                                       self.cases[todo], self._expected, self._scrub, limits, notes)
+            entry["grader_error"] = f"{type(error).__name__}: {error}"[:300]
+            return entry
 
-    def _run(self, todo, files, pool):
+    def _reference_of(self, todo):
+        return self._reference_values(todo) if self.reference is not None else None
+
+    def _run_and_judge(self, todo, files, pool, budget, notes):
         cases = self.cases[todo]
-        visible, hidden = _phase(cases.visible), _phase(cases.hidden)
-        key = _digest(blocks.files_digest(files), pool.digest if pool else "", todo,
-                      *[fingerprint({"id": case_id, "args": args}) for case_id, _, args in visible + hidden],
-                      len(visible), self.sandbox.time_limit)
-        return self._memoized(key, lambda: self._run_now(todo, files, visible, hidden, pool))
+        run = {"student": self._run_now(todo, files, _phase(cases.visible), _phase(cases.hidden), pool, budget),
+               "reference": self._reference_of(todo)}
+        entry = self._judge(todo, run, pool, notes)
+        entry["_budget"] = run["student"][0].budget  # another submission with this code gets its own budget
+        return entry
 
-    def _run_now(self, todo, files, visible, hidden, pool):
+    def _judge(self, todo, run, pool, notes):
+        services = self._services(self._service_requests(todo, run), pool)
+        limits = (self.sandbox.time_limit, self.sandbox.memory_limit / 2**20)
+        return judging.judge_todo(todo, run, services, self.cases[todo], self._expected, self._scrub, limits, notes)
+
+    def _run_now(self, todo, files, visible, hidden, pool, budget=None):
         with tempfile.TemporaryDirectory(prefix="hwgrade-kit-") as scratch:
             kit = blocks.write_files(files, Path(scratch) / "kit")
             try:
-                return broker.run_cases(self.sandbox.start(kit), todo, visible, hidden, pool)
+                return broker.run_cases(self.sandbox.start(kit, budget=budget), todo, visible, hidden, pool)
             finally:
                 for path in Path(scratch).rglob("*"):
                     path.chmod(0o700)
@@ -293,7 +378,9 @@ class Grader:
 
         return self._memoized(("reference", todo), compute)
 
-    def _memoized(self, key, compute):
+    def _memoized(self, key, compute, keep=lambda value: True):
+        """``compute()``, once per ``key`` for this grader (threads asking at once wait for the first);
+        a value that ``keep`` refuses is returned but not kept."""
         with self._memo_lock:
             entry = self._memo.get(key)
             owner = entry is None
@@ -302,6 +389,9 @@ class Grader:
         if owner:
             try:
                 entry["value"] = compute()
+                if not keep(entry["value"]):
+                    with self._memo_lock:
+                        self._memo.pop(key, None)
             except BaseException as error:  # noqa: BLE001 - handed to every waiter
                 entry["error"] = error
                 with self._memo_lock:
@@ -353,6 +443,18 @@ class Grader:
         if self.key is not None:
             return self.key["expected"].get(case_id)
         return reference.get(case_id)
+
+
+def _failure(step, error, todo=None):
+    """One line saying why a submission (or its TODO ``todo``) could not be read, compiled or graded."""
+    why = {RecursionError: "nested too deeply for Python's compiler", MemoryError: "too large to hold in memory"}
+    kind = type(error).__name__
+    detail = next((words for cls, words in why.items() if isinstance(error, cls)), str(error)[:200] or kind)
+    if step == "compile":
+        return f"your code for TODO {todo} cannot be compiled ({kind}: {detail})"
+    if step == "read":
+        return f"the submission cannot be read ({kind}: {detail})"
+    return f"the grader failed on this TODO's code ({kind}: {detail}); it was not graded"
 
 
 def write_answer_key(reference_kit, out_path, python=None, isolation="auto"):

@@ -30,11 +30,17 @@ reference to read on disk.
 
 Isolation: bubblewrap where it can create namespaces; where it cannot (Docker's default seccomp
 profile refuses them, as Gradescope's containers very likely do), the unprivileged-user fallback
-(``user_sandbox.py``: one user per run, no network sockets, a private kit folder). Under the
-fallback the autograder also makes ``source/`` root's alone, takes the group and other write bits
-off everything under the root that runs later, and kills every process of the sandbox's users,
-found by uid, before it writes ``results.json`` (into ``results/``, which only root may write).
-The log and ``results.json``'s ``extra_data`` say which isolation graded the submission.
+(``user_sandbox.py``: one user per run, no network sockets, a private kit folder). Before
+anything runs, the autograder (as root) makes ``source/`` root's alone and takes the group and
+other write bits off everything under the root that runs later; under the fallback it also kills
+every process of the sandbox's users, found by uid, before it writes ``results.json`` (into
+``results/``, which only root may write). The log and ``results.json``'s ``extra_data`` say which
+isolation graded the submission.
+
+Fail closed: where neither works (``setup.sh`` never ran or failed), no student code runs at all:
+``results.json`` gives 0, tells the student the autograder is misconfigured, and tells the
+instructor (``extra_data``, the log) why and how to fix it. A failure of the grader itself also
+gives 0 and says so, rather than no ``results.json``.
 """
 
 from __future__ import annotations
@@ -97,15 +103,25 @@ def _tests(result):
     return tests
 
 
-def results_json(result, status, notes=(), seconds=0.0, sandbox=""):
+MISCONFIGURED = ("The autograder is misconfigured: it has no sandbox to run your code in, so your code was not "
+                 "run and earns 0 automatic points for now. This is not your fault: tell your instructor, and "
+                 "submit again once it is fixed.")
+FAILED = ("The autograder failed while grading your submission, so it earns 0 automatic points for now. Tell your "
+          "instructor; submitting again may help.")
+
+
+def results_json(result, status, notes=(), seconds=0.0, sandbox="", fault=None):
     """Gradescope's results.json (a dict) for one submission: ``result`` is the grader's dict, or
     None when the submission could not be graded (``status`` says why); ``sandbox``: the kind of
-    isolation (bwrap, user or none)."""
+    isolation (bwrap, user or none); ``fault``: the autograder's own message when it could not
+    grade (misconfigured, failed), shown instead of advice on the submission."""
     manual = sum(todo.manual for todo in TODOS)
     # the student's status: whether the sandbox worked is the instructor's business (extra_data, stdout)
     shown = "; ".join(part for part in status.split("; ") if part != NOT_ISOLATED) or GRADED
     lines = [f"Status: **{md_escape(shown)}**", ""]
-    if result is None:
+    if fault is not None:
+        lines.append(fault)
+    elif result is None:
         lines += ["Your submission was not graded, so it earns 0 automatic points. Fix it and submit again.", "",
                   UNGRADED_HELP]
     else:
@@ -176,17 +192,28 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
     started = time.monotonic()
     paths = autograder_paths(root)
     time_limit = float(time_limit or os.environ.get("AUTOGRADER_TIME_LIMIT") or DEFAULT_TIME_LIMIT)
-    grader = Grader(paths["source"], python=python, isolation=isolation, time_limit=time_limit)  # up to 4 runs at once
+    if os.geteuid() == 0:  # before anything runs: what runs later is root's to change, source/ root's alone
+        changed = harden(paths["root"], paths["source"])
+        out.write(f"source/ is root's alone; {len(changed)} path(s) under {paths['root']} made unwritable to other "
+                  "users\n")
+    grader = Grader(paths["source"], python=python, isolation=isolation, time_limit=time_limit)  # one run at a time
     box = grader.sandbox
     kit_names = kit_file_names(grader.layout)
     scrubbed = _scrub(paths["source"])
     out.write(f"sandbox: {box.kind}: {box.how if box.isolated else 'NOT ISOLATED: ' + box.how}\n"
               f"grader: {Path(__file__).resolve().parent}; reference: {paths['source']} (hwlib and hidden checks "
               f"{'deleted from disk once loaded' if scrubbed else 'left on disk'})\n")
-    if box.kind == "user":
-        changed = harden(paths["root"], paths["source"])
-        out.write(f"user sandbox: source/ is root's alone; {len(changed)} path(s) under {paths['root']} made "
-                  "unwritable to other users\n")
+    refused = grader.refusal()
+    if refused:  # fail closed: no sandbox, no student code
+        out.write(f"error: the autograder is misconfigured: {refused}. Check setup.sh's log (its last line says which "
+                  "isolation grades): it must install bubblewrap or create the fallback's users (hwgrade1..8).\n")
+        data = results_json(None, "not graded: the autograder is misconfigured (no sandbox)", (),
+                            time.monotonic() - started, sandbox=box.kind, fault=MISCONFIGURED)
+        data["extra_data"]["misconfigured"] = refused
+        write_results(paths["results"], data)
+        out.flush()
+        return data
+    fault = None
     try:
         with open_submission(paths["submission"], kit_names) as opened:
             result = grader.grade(opened.kit)
@@ -194,13 +221,16 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
             status, notes = status_of(result), opened.notes
     except Unusable as unusable:
         result, status, notes = None, unusable.text, []
+    except Exception as error:  # noqa: BLE001 - the autograder's own failure: 0, said so, never no results.json
+        result, status, notes, fault = None, f"not graded: the autograder failed ({type(error).__name__})", [], FAILED
+        out.write(f"error: the grader failed: {type(error).__name__}: {error}\n")
     if box.kind == "user":
         from hwtools.grade.user_sandbox import kill_all_users  # noqa: PLC0415
 
         if not kill_all_users():
             raise GradingError("a process of the sandbox's users could not be killed: no results written")
         out.write("user sandbox: every process of the sandbox's users killed before results.json was written\n")
-    data = results_json(result, status, notes, time.monotonic() - started, sandbox=box.kind)
+    data = results_json(result, status, notes, time.monotonic() - started, sandbox=box.kind, fault=fault)
     write_results(paths["results"], data)
     out.write(f"status: {status}; score {data['score']:g}\n")
     if result is not None:

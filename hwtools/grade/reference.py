@@ -38,6 +38,7 @@ import weakref
 from pathlib import Path
 
 from hwtools.grade import blocks
+from hwtools.grade.channel import ChannelTimeout
 
 LIFETIME = 3600.0  # seconds a server lives at most (its wall-clock and CPU limit)
 SETUP_SECONDS = 120.0  # to start and import the kit
@@ -96,7 +97,9 @@ class ReferenceServer:
     """One server process: ``send`` numbers each message, ``receive`` checks nothing but the form."""
 
     def __init__(self, sandbox, kit_dir, lifetime=LIFETIME, trusted=True):
-        self.process = _spawn(lambda: sandbox.start(kit_dir, lifetime, trusted=trusted))
+        # never exclusive: a server answers the run that holds the turn (the preview's server, on the
+        # student's own kit, holds no secret: no reference, no hidden input)
+        self.process = _spawn(lambda: sandbox.start(kit_dir, lifetime, trusted=trusted, exclusive=False))
         self.sent, self.broken, self.closed, self.last_used = 0, False, False, time.monotonic()
         try:
             number = self.send({"op": "setup", "mode": "server"})
@@ -111,12 +114,18 @@ class ReferenceServer:
     def remaining(self):
         return self.process.deadline - time.monotonic()
 
-    def send(self, message):
+    def send(self, message, deadline=None):
+        """Number and write ``message`` by ``deadline`` (default: the server's lifetime)."""
         self.sent += 1
         try:
-            self.process.send(dict(message, n=self.sent))
+            self.process.send(dict(message, n=self.sent), deadline)
         except OSError:
             self.broken = True
+            raise ServerFailed("the reference server stopped reading") from None
+        except ChannelTimeout:
+            self.broken = True
+            if deadline is not None and time.monotonic() < self.process.deadline:
+                raise ServerTimeout("no room to write in time") from None
             raise ServerFailed("the reference server stopped reading") from None
         return self.sent
 
@@ -132,7 +141,7 @@ class ReferenceServer:
 
     def request(self, message, deadline):
         """Send ``message`` and return the ``done`` that answers it (for probes: no call-backs)."""
-        number = self.send(message)
+        number = self.send(message, deadline)
         reply = self.receive(deadline)
         if reply.get("op") != "done" or reply.get("re") != number:
             self.broken = True
@@ -144,8 +153,8 @@ class ReferenceServer:
             return None
         self.broken = self.closed = True
         try:
-            self.process.send({"op": "exit", "n": self.sent + 1})
-        except OSError:
+            self.process.send({"op": "exit", "n": self.sent + 1}, time.monotonic() + 1.0)
+        except (OSError, ChannelTimeout):
             pass
         return self.process.finish(graceful=False)
 

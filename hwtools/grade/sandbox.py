@@ -23,15 +23,34 @@ code: a trusted run (``start(..., trusted=True)``: a reference server, no studen
 is launched as ``none`` here, as the grader's own user (``run_kind``).
 
 ``none``: a plain subprocess, with the same limits and messages but no isolation;
-``Sandbox.isolated`` is then False and ``Sandbox.how`` says why.
+``Sandbox.isolated`` is then False and ``Sandbox.how`` says why. "auto" ends here where nothing
+else works, but a ``Grader`` with a reference refuses to run students' code so
+(``Grader.refusal``: fail closed); only the student edition's preview, or an explicit "none",
+runs that way.
+
+**One untrusted run at a time.** Sandboxes cannot hide every piece of kernel state two live
+processes share: byte-range, OFD and flock locks on a file both bind read-only, inotify on it, the
+timing of a shared CPU or cache. So two runs that hold student code never overlap in this process
+(``_UNTRUSTED_RUN``, whatever grader or submission they belong to): a run may be *started* early
+(its sandbox made, Python, numpy, gymnasium and the grader's own runtime imported: trusted code
+only) while another one executes, but it *begins* (``WorkerProcess.begin``, on the first message
+the grader sends, before any code of the kit is imported) only once the run before it has ended
+and every process of it is dead: the sandbox's process-namespace init gone (bubblewrap), no
+process of the run's user left (the user fallback). Trusted work runs alongside: the reference
+servers (``trusted=True``, no student code), judging, reading submissions. A run's wall-clock
+clock starts when it begins.
 
 Every run has a CPU-time limit, an address-space limit, a file-size limit (``prlimit`` before the
 worker starts, and again by the worker itself before it imports the kit), and a wall-clock
 backstop (``WALL_FACTOR`` times the CPU limit plus ``WALL_SLACK``) against code that sleeps or
-waits: a loaded machine slows a run down without turning it into a time-out. The worker's error
-stream goes to a file, never a pipe, so a child that keeps it open cannot hold the grader; every
-read of the answers is bounded by the deadline. At the end the whole sandbox is killed (the
-process namespace, the run's user, or the process group and an environment token).
+waits: a loaded machine slows a run down without turning it into a time-out. The runs of one
+submission share a wall-clock ``Budget`` too: a run that begins with less of it left than its
+backstop ends when the budget does, and one that begins with none left does not run. The worker's
+error stream goes to a file, never a pipe, so a child that keeps it open cannot hold the grader;
+every read of the answers and every write of a request ends at the run's deadline (the requests'
+pipe is non-blocking), so a worker that stops reading is killed then. At the end the whole
+sandbox is killed (the process namespace, the run's user, or the process group and an environment
+token).
 
 The grader's own process can be put under a memory limit too (``limit_own_memory``; the command
 lines do), so that nothing a worker sends can take the trusted side down.
@@ -39,6 +58,7 @@ lines do), so that nothing a worker sends can take the trusted side down.
 
 from __future__ import annotations
 
+import json
 import os
 import resource
 import select
@@ -47,12 +67,14 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from hwtools.grade import worker as protocol
+from hwtools.grade.channel import ChannelTimeout
 from hwtools.grade.bwrap_sandbox import bwrap_options, options_pipe, probe_isolation, worker_env
 
 WORKER = Path(__file__).resolve().with_name("worker.py")
@@ -65,6 +87,27 @@ MAX_FILE_BYTES = 64 * 1024**2  # any one file a run writes (its error stream inc
 STDERR_TAIL = 4000  # characters of the worker's error stream kept
 TOKEN_VARIABLE = "HWGRADE_SANDBOX"
 KINDS = ("auto", "bwrap", "user", "none")
+GONE_SECONDS = 30.0  # to wait for a killed sandbox's last process
+BUDGET_WORDS = "the submission's time budget was used up"
+_UNTRUSTED_RUN = threading.Lock()  # held by the one run of student code that executes in this process
+_SURVIVORS = []  # set when a run's processes could not be killed: no run begins after it
+
+
+class Budget:
+    """The wall-clock seconds the runs of one submission may take together (each from its ``begin``
+    to its end); thread-safe. ``remaining()`` can go negative once spent."""
+
+    def __init__(self, seconds):
+        self.seconds, self.spent = float(seconds), 0.0
+        self._lock = threading.Lock()
+
+    def remaining(self):
+        with self._lock:
+            return self.seconds - self.spent
+
+    def spend(self, seconds):
+        with self._lock:
+            self.spent += seconds
 
 
 @dataclass
@@ -159,18 +202,22 @@ class Sandbox:
         options, limits = self.limits(time_limit, kind)
         prlimit = [shutil.which("prlimit"), *options, "--"] if shutil.which("prlimit") else []
         if kind == "bwrap":
-            return (prlimit + [shutil.which("bwrap"), "--args", "{fd}", "--", os.path.abspath(self.python), "-B", "-s",
-                               "/grader/worker.py", "/kit"] + limits, bwrap_options(self.python, kit_dir))
+            return (prlimit + [shutil.which("bwrap"), "--args", "{fd}", "--info-fd", "{info}", "--",
+                               os.path.abspath(self.python), "-B", "-s", "/grader/worker.py", "/kit"] + limits,
+                    bwrap_options(self.python, kit_dir))
         if kind == "user":
             return prlimit + run_folder.command(self.python) + limits, None
         return prlimit + [self.python, "-B", "-s", str(WORKER), str(kit_dir)] + limits, None
 
-    def start(self, kit_dir, time_limit=None, trusted=False):
+    def start(self, kit_dir, time_limit=None, trusted=False, exclusive=None, budget=None):
         """Start one worker on ``kit_dir``: a ``WorkerProcess`` to talk to (``send``/``receive``) and
         to end (``finish``, which also ends every process it started). Launching and limits live
         here; what the messages say is the caller's business. ``trusted``: the kit holds no student
-        code (a reference server, ``run_kind``)."""
-        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit), trusted)
+        code (a reference server, ``run_kind``). ``exclusive`` (default: not trusted): the run
+        begins only when no other exclusive run of this process is alive (the module docstring);
+        ``budget``: the submission's ``Budget``."""
+        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit), trusted,
+                             (not trusted) if exclusive is None else exclusive, budget)
 
     def run(self, kit_dir, requests, time_limit=None):
         """Run the cases of ``requests`` (each ``{"cases": [{id, probe, args}, ...]}``) on a worker on
@@ -200,17 +247,18 @@ class Sandbox:
 class WorkerProcess:
     """One running worker: its standard input takes requests, its standard output gives answers,
     both npz messages (``worker.py``); its error stream goes to a file. ``deadline`` (monotonic
-    seconds, the wall-clock backstop) ends it at the latest."""
+    seconds, the wall-clock backstop, counted from ``begin``) ends it at the latest."""
 
-    def __init__(self, sandbox, kit_dir, time_limit, trusted=False):
+    def __init__(self, sandbox, kit_dir, time_limit, trusted=False, exclusive=False, budget=None):
         self.sandbox, self.time_limit, self.kind = sandbox, time_limit, sandbox.run_kind(trusted)
+        self.exclusive, self.budget = exclusive, budget
         self.started = time.monotonic()
         self.deadline = self.started + wall_limit(time_limit)
-        self._killed = False
+        self.begun = self._holding = self._budget_bound = self._killed = False
         self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-")
         self._token = uuid.uuid4().hex
-        self._run_folder = None
-        env, cwd, fds = {}, self._scratch.name, ()
+        self._run_folder = self._init = None
+        env, cwd, fds, info = {}, self._scratch.name, (), None
         try:
             if self.kind == "user":
                 from hwtools.grade.user_sandbox import RunFolder  # noqa: PLC0415
@@ -223,8 +271,9 @@ class WorkerProcess:
                 env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
             command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind)
             if options is not None:
-                fds = (options_pipe(options),)
-                command = [part.replace("{fd}", str(fds[0])) for part in command]
+                info = os.pipe()
+                fds = (options_pipe(options), info[1])
+                command = [part.replace("{fd}", str(fds[0])).replace("{info}", str(info[1])) for part in command]
             self._stderr = open(Path(self._scratch.name) / "stderr", "w+b")  # noqa: SIM115 - closed in finish
             try:
                 self.process = subprocess.Popen(
@@ -233,13 +282,50 @@ class WorkerProcess:
             finally:
                 for fd in fds:
                     os.close(fd)
+            os.set_blocking(self.process.stdin.fileno(), False)  # every write has a deadline (send)
+            if info is not None:
+                self._init = _sandbox_init(info[0], self.process.pid)
         except BaseException:
             self._cleanup()
             raise
+        finally:
+            if info is not None:
+                os.close(info[0])
 
-    def send(self, message):
-        """Write one request (raises BrokenPipeError/OSError when the worker no longer reads)."""
-        protocol.write_message(self.process.stdin.fileno(), message)
+    def begin(self):
+        """Start the run proper (once; ``send`` calls it): an exclusive run first waits until no other
+        one is alive, and its wall-clock limit (and the submission's budget) count from here. Raises
+        ChannelTimeout when the budget is already spent: no code of the kit runs then."""
+        if self.begun:
+            return
+        if self.exclusive:
+            _UNTRUSTED_RUN.acquire()
+            self._holding = True
+            if _SURVIVORS:
+                raise RuntimeError(f"no run begins: {_SURVIVORS[0]}")
+        self.begun = True
+        self.started = time.monotonic()
+        limit = wall_limit(self.time_limit)
+        if self.budget is not None:
+            left = self.budget.remaining()
+            if left < limit:
+                limit, self._budget_bound = max(0.0, left), True
+        self.deadline = self.started + limit
+        if self._budget_bound and limit <= 0:
+            raise ChannelTimeout(BUDGET_WORDS)
+
+    def send(self, message, deadline=None):
+        """Write one request by ``deadline`` (default and at the latest: the run's). Raises
+        BrokenPipeError/OSError when the worker no longer reads, ChannelTimeout when it does not
+        read in time."""
+        self.begin()
+        deadline = self.deadline if deadline is None else min(deadline, self.deadline)
+        try:
+            protocol.write_message(self.process.stdin.fileno(), message, deadline)
+        except ChannelTimeout:
+            raise ChannelTimeout(BUDGET_WORDS if self._budget_bound else
+                                 f"the wall-clock limit of {wall_limit(self.time_limit):.0f} s was reached "
+                                 "(the worker stopped reading)") from None
 
     def receive(self, deadline=None):
         """The next answer (a dict), or "status:detail" (timeout, ended, garbled)."""
@@ -248,6 +334,8 @@ class WorkerProcess:
         if answer == "ended:" and self._cpu_limit_reached():
             return f"timeout:the CPU-time limit of {self.sandbox.limits(self.time_limit, self.kind)[1][0]} s was reached"
         if isinstance(answer, str) and answer.startswith("timeout:"):
+            if self._budget_bound and time.monotonic() >= self.deadline:
+                return f"timeout:{BUDGET_WORDS}"
             return f"timeout:the wall-clock limit of {wall_limit(self.time_limit):.0f} s was reached (the code waited)"
         return answer
 
@@ -262,24 +350,76 @@ class WorkerProcess:
 
     def finish(self, graceful=True):
         """End the worker and everything it started; (exit code, last lines of its error stream, seconds).
-        ``graceful``: give it until the deadline to exit on its own (it was told to), else kill now."""
+        ``graceful``: give it until the deadline to exit on its own (it was told to), else kill now.
+        An exclusive run lets the next one begin only once every process of it is dead."""
         try:
-            code = _finish(self, self.deadline if graceful else time.monotonic())
+            code = _finish(self, self.deadline if graceful and self.begun else time.monotonic())
             if self.kind == "none":
                 _kill_strays(self._token)
-            if self._run_folder is not None:
-                self._run_folder.end()
             return code, _tail(self._stderr), round(time.monotonic() - self.started, 3)
         finally:
             self._cleanup()
 
     def _cleanup(self):
-        if self._run_folder is not None:
-            self._run_folder.end()
-        stream = getattr(self, "_stderr", None)
-        if stream is not None:
-            stream.close()
-        self._scratch.cleanup()
+        try:
+            gone = True
+            if self._run_folder is not None:
+                gone = self._run_folder.end()
+            if self._init is not None:
+                gone = _wait_gone(self._init) and gone
+                os.close(self._init)
+                self._init = None
+            if not gone and self.exclusive:
+                _SURVIVORS.append("a process of an earlier run of student code could not be killed")
+            stream = getattr(self, "_stderr", None)
+            if stream is not None:
+                stream.close()
+            self._scratch.cleanup()
+        finally:
+            if self.begun and self.budget is not None:
+                self.budget.spend(time.monotonic() - self.started)
+                self.budget = None
+            if self._holding:
+                self._holding = False
+                _UNTRUSTED_RUN.release()
+
+
+def _sandbox_init(info_fd, bwrap_pid, wait=60.0):
+    """A pidfd of the bubblewrap sandbox's process-namespace init, read from ``bwrap --info-fd``
+    (None if bubblewrap ended before making it): when it has exited, every process of the sandbox
+    has (the kernel kills and reaps a namespace's processes before its init exits)."""
+    data, give_up = b"", time.monotonic() + wait
+    while time.monotonic() < give_up:
+        if not select.select([info_fd], [], [], give_up - time.monotonic())[0]:
+            continue
+        chunk = os.read(info_fd, 4096)
+        if not chunk:
+            break
+        data += chunk
+    try:
+        child = int(json.loads(data.decode())["child-pid"])
+        pidfd = os.pidfd_open(child)
+    except (ValueError, KeyError, TypeError, OSError):
+        return None
+    try:  # the pid is bubblewrap's child (not a process that reused a freed pid)
+        with open(f"/proc/{child}/stat", encoding="ascii", errors="replace") as stat:
+            parent = int(stat.read().rsplit(")", 1)[1].split()[1])
+    except (OSError, ValueError, IndexError):
+        parent = None
+    if parent != bwrap_pid:
+        os.close(pidfd)
+        return None
+    return pidfd
+
+
+def _wait_gone(pidfd):
+    """Kill the sandbox's init (and so every process of its namespace) and wait until it is gone;
+    False if it is still there after GONE_SECONDS."""
+    try:
+        signal.pidfd_send_signal(pidfd, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    return bool(select.select([pidfd], [], [], GONE_SECONDS)[0])
 
 
 def _read_answer(fd, deadline):

@@ -124,9 +124,10 @@ def is_callable_mark(value):
         and not isinstance(value["__callable__"], bool)
 
 
-def check_call(entry, args, state):
-    """None if ``args`` and ``state`` are what a call of ``entry`` may carry, else why not (words
-    of the grader, naming the argument). Returns (problem, callable ids)."""
+def check_call(entry, args, state, limit=MAX_NUMBERS):
+    """None if ``args`` and ``state`` are what a call of ``entry`` may carry (numbers only, at most
+    ``limit`` of them), else why not (words of the grader, naming the argument). Returns (problem,
+    callable ids)."""
     if not isinstance(args, dict) or set(args) != set(entry.params):
         return f"{entry.where} takes the arguments {', '.join(entry.params)}", ()
     wanted = set(entry.init) | set(entry.state)
@@ -141,8 +142,8 @@ def check_call(entry, args, state):
         if count is None:
             return f"the grader passes only numbers to {entry.where}: {name} is not numbers", ()
         total += count
-    if total > MAX_NUMBERS or len(marks) > MAX_CALLABLES:
-        return f"the arguments of {entry.where} are larger than the grader serves", ()
+    if total > min(limit, MAX_NUMBERS) or len(marks) > MAX_CALLABLES:
+        return f"the arguments of {entry.where} are larger than the grader serves in this check", ()
     for name, largest in entry.limits:
         value = args.get(name, state.get(name))
         if isinstance(value, (int, np.integer)) and not isinstance(value, bool) and int(value) > largest:

@@ -399,6 +399,27 @@ def open_submission(path, kit_names=()):
         blocks.remove_tree(scratch)
 
 
+PLAIN_ID = re.compile(r"^[A-Za-z0-9@+_-][A-Za-z0-9._@+-]{0,99}$")  # kept as they are: no "~" or "%", 100 at most
+NAME_HASH = 16  # hex digits of sha-256 in a long id's file name
+
+
+def file_name(student):
+    """The file name (without suffix) of ``student``'s feedback and saved state: bounded in length
+    (at most 119 characters) and collision-free by construction. A plain id (letters, digits,
+    ``._@+-``, not starting with a dot, at most 100 characters) is its own name; any other id is
+    percent-encoded (UTF-8, every other character as %XX: one id, one encoding) behind a ``~``,
+    which no plain id contains; an encoding longer than 100 characters is cut and followed by a
+    second ``~`` and a hash of the exact id. So "Ana María" is ``~Ana%20Mar%C3%ADa`` and never the
+    name of the plain id ``Ana_Mar_a-8358ed27``."""
+    if PLAIN_ID.match(student):
+        return student
+    encoded = "".join(char if re.match(r"[A-Za-z0-9._@+-]", char) else
+                      "".join(f"%{byte:02X}" for byte in char.encode("utf-8", "surrogatepass")) for char in student)
+    if len(encoded) <= 100:
+        return "~" + encoded
+    return f"~{encoded[:100]}~{hashlib.sha256(student.encode('utf-8', 'surrogatepass')).hexdigest()[:NAME_HASH]}"
+
+
 def kit_file_names(layout):
     """The names of the files directly in the reference's ``hwlib/`` that hold TODO blocks."""
     names = set()

@@ -3,7 +3,7 @@ them, as on Gradescope): each run as an unprivileged user of its own, without ne
 kit folder only that run can read.
 
     python -m hwtools.grade.user_sandbox create [--count 8]    # once, as root (setup.sh does it)
-    python -m hwtools.grade.user_sandbox python FOLDER          # a Python those users can run
+    python -m hwtools.grade.user_sandbox python FOLDER          # a Python those users can run (rm -r it after)
 
 What a run gets (the grader must run as root to start it):
 
@@ -20,8 +20,15 @@ When the run ends every process of its user is killed, found by uid (``kill(-1)`
 then a ``/proc`` scan until none is left), so a child that left the process group, cleared its
 environment or called ``setsid`` dies too. Not hidden (no namespaces): the host's process list and
 command lines, and every file that any user may read. So the reference kit must not be readable
-by other users (the Gradescope autograder makes its ``source/`` root-only and deletes the reference
-once loaded).
+by other users: the grader checks it as each pool user (``readable_by_pool``) and refuses to
+grade while one can (the Gradescope autograder makes its ``source/`` root-only and deletes the
+reference once loaded).
+
+The Python that runs the worker must be one the pool's users can run whatever the permissions of
+the folder the kit was cloned into: ``runnable_python`` makes a virtual environment of the
+system's Python in a folder of its own, with real copies of the installed packages the graded
+code imports (``GRADED_PACKAGES`` and what they require), never a path into someone's private
+folder (``setup.sh`` does the same with pip on Gradescope).
 """
 
 from __future__ import annotations
@@ -29,6 +36,7 @@ from __future__ import annotations
 import argparse
 import fcntl
 import functools
+import json
 import os
 import pwd
 import re
@@ -47,6 +55,7 @@ USER_NAME = re.compile(r"^hwgrade(\d+)$")
 DEFAULT_USERS = 8
 MAX_PROCESSES = 64  # processes (threads included) of one run's user
 LOCK_DIR = Path("/run/hwgrade-sandbox")
+GRADED_PACKAGES = ("numpy", "gymnasium")  # what hwlib imports when the worker loads it (with their requirements)
 _THREAD_LOCK = threading.Lock()
 _HELD = set()  # users held by runs of this process
 
@@ -200,7 +209,7 @@ class RunFolder:
     def __init__(self, kit_dir, worker):
         self._slot = _Slot()
         self.uid, self.gid = self._slot.user.pw_uid, self._slot.user.pw_gid
-        self._ended = False
+        self._ended, self._gone = False, True
         try:
             kill_user(self.uid, self.gid)  # whatever a crashed grader may have left behind
             self.base = Path(tempfile.mkdtemp(prefix="hwgrade-user-"))
@@ -233,16 +242,18 @@ class RunFolder:
                 str(self.kit)]
 
     def end(self):
-        """Kill every process of the run's user, delete the folder, free the user (once)."""
+        """Kill every process of the run's user, delete the folder, free the user (once). True when
+        no process of the user is left."""
         if self._ended:
-            return
-        self._ended = True
+            return self._gone
+        self._ended, self._gone = True, False
         try:
-            kill_user(self.uid, self.gid)
+            self._gone = kill_user(self.uid, self.gid)
             if getattr(self, "base", None) is not None:
                 shutil.rmtree(self.base, ignore_errors=True)
         finally:
             self._slot.release()
+        return self._gone
 
 
 PROBE_CODE = ("import os, socket, numpy\n"
@@ -289,10 +300,66 @@ def probe(python):
                   f"at the end; no namespaces: the host's processes and world-readable files are visible")
 
 
-def runnable_python(folder, python=sys.executable):
-    """A virtual environment in ``folder`` made from the system's Python, using ``python``'s installed
-    packages, that the pool's users can run (``python`` may live where they cannot, as under /root).
-    Both must be the same Python version. Returns the new Python's path."""
+def readable_by_pool(paths):
+    """The ``paths`` that a user of the pool can open for reading, tried as each of them (a child
+    process that becomes the user, as ``kill_user`` does)."""
+    paths, found = [str(path) for path in paths], set()
+    for entry in users():
+        read, write = os.pipe()
+        pid = os.fork()
+        if pid == 0:
+            try:
+                os.close(read)
+                os.setgroups([])
+                os.setresgid(entry.pw_gid, entry.pw_gid, entry.pw_gid)
+                os.setresuid(entry.pw_uid, entry.pw_uid, entry.pw_uid)
+                opened = []
+                for number, path in enumerate(paths):
+                    try:
+                        os.close(os.open(path, os.O_RDONLY))
+                        opened.append(str(number))
+                    except OSError:
+                        pass
+                os.write(write, ",".join(opened).encode())
+            finally:
+                os._exit(0)
+        os.close(write)
+        with os.fdopen(read, "rb") as stream:
+            answer = stream.read().decode()
+        os.waitpid(pid, 0)
+        found |= {paths[int(number)] for number in answer.split(",") if number}
+    return sorted(found)
+
+
+_DISTRIBUTION_FILES = r"""
+import importlib.metadata as metadata, json, os, re, sys, sysconfig
+site = os.path.realpath(sysconfig.get_paths()["purelib"])
+pending, seen, files = list(sys.argv[1:]), set(), []
+while pending:
+    name = pending.pop()
+    key = re.sub(r"[-_.]+", "-", name).lower()
+    if key in seen:
+        continue
+    seen.add(key)
+    try:
+        dist = metadata.distribution(name)
+    except metadata.PackageNotFoundError:
+        continue  # a requirement of another Python version or platform
+    pending += [re.match(r"[A-Za-z0-9_.-]+", line)[0] for line in dist.requires or [] if "extra ==" not in line]
+    for item in dist.files or []:
+        path = os.path.realpath(dist.locate_file(item))
+        if path.startswith(site + os.sep) and os.path.isfile(path):
+            files.append(os.path.relpath(path, site))
+print(json.dumps({"site": site, "files": sorted(set(files))}))
+"""
+
+
+def runnable_python(folder, python=sys.executable, packages=GRADED_PACKAGES):
+    """A virtual environment in ``folder`` made from the system's Python that the pool's users can
+    run, with real copies of ``python``'s installed ``packages`` and every distribution they
+    require (``python`` may live where those users cannot reach, as under /root or in a clone inside
+    a private folder). Both must be the same Python version. The folder is root's to write and
+    everyone's to read; delete it when done. Returns the new Python's path."""
     folder = Path(folder)
     subprocess.run([SYSTEM_PYTHON, "-m", "venv", "--without-pip", str(folder)], check=True, capture_output=True)
     new = folder / "bin" / "python"
@@ -300,11 +367,17 @@ def runnable_python(folder, python=sys.executable):
                                text=True, check=True).stdout for candidate in (new, python)]
     if versions[0] != versions[1]:
         raise RuntimeError(f"{SYSTEM_PYTHON} is Python {versions[0].strip()}, {python} is {versions[1].strip()}")
-    paths = subprocess.run([python, "-c", "import sysconfig; p = sysconfig.get_paths(); print(p['purelib']); "
-                            "print(p['platlib'])"], capture_output=True, text=True, check=True).stdout.split()
-    site = subprocess.run([str(new), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-                          capture_output=True, text=True, check=True).stdout.strip()
-    Path(site, "hwgrade-packages.pth").write_text("\n".join(dict.fromkeys(paths)) + "\n")
+    found = json.loads(subprocess.run([python, "-I", "-c", _DISTRIBUTION_FILES, *packages], capture_output=True,
+                                      text=True, check=True).stdout)
+    site = Path(subprocess.run([str(new), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                               capture_output=True, text=True, check=True).stdout.strip())
+    for relative in found["files"]:
+        target = site / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(Path(found["site"]) / relative, target)
+    for path in [folder, *folder.rglob("*")]:
+        if not path.is_symlink():
+            path.chmod(0o755 if path.is_dir() or os.access(path, os.X_OK) else 0o644)
     return str(new)
 
 
@@ -313,14 +386,21 @@ def main(argv=None):
     commands = parser.add_subparsers(dest="command", required=True)
     create = commands.add_parser("create", help="create the pool's users (as root)")
     create.add_argument("--count", type=int, default=DEFAULT_USERS)
-    python = commands.add_parser("python", help="make a Python the pool's users can run, with this one's packages")
-    python.add_argument("folder")
+    python = commands.add_parser("python", help="make a Python the pool's users can run (a venv in FOLDER, with "
+                                                "real copies of this Python's packages that graded code imports; "
+                                                "rm -r FOLDER after)")
+    python.add_argument("folder", help="a new folder, in a place the pool's users can reach (not under /root)")
     commands.add_parser("probe", help="say whether runs as a pool user work here")
     args = parser.parse_args(argv)
     if args.command == "create":
         print("sandbox users:", " ".join(create_users(args.count)))
     elif args.command == "python":
-        print(runnable_python(args.folder))
+        python = runnable_python(args.folder)
+        print(python)
+        works, how = probe(python) if os.geteuid() == 0 and users() else (False, "not checked (not root, or no users)")
+        if not works:
+            print(f"warning: the pool's users cannot run it ({how}): the folders above it must let them in",
+                  file=sys.stderr)
     else:
         works, how = probe(sys.executable)
         print(("user sandbox: " if works else "no user sandbox: ") + how)
