@@ -198,10 +198,23 @@ def test_sigmoid_tolerances_see_clipping_and_nan():
     assert not judged("2.2.1/precision", {"z": z}, clip20, expected).passed  # not float64 precision
     assert not judged("2.2.1/values", {"z": z}, nan, expected).passed
     near = np.linspace(-20, 20, 401)
-    assert not judged("2.2.1/values", {"z": near}, reference_sigmoid(near) + 2e-15, reference_sigmoid(near)).passed
+    # float64 precision is the precision check's own sub-point, not the formula's
+    assert not judged("2.2.1/precision", {"z": near}, reference_sigmoid(near) + 2e-15, reference_sigmoid(near)).passed
+    cut = np.where(near > 10, 1.0, np.where(near < -10, 0.0, reference_sigmoid(near)))  # a cut-off, not a formula
+    assert not judged("2.2.1/values", {"z": near}, cut, reference_sigmoid(near)).passed
+    assert not judged("2.2.1/values", {"z": near}, reference_sigmoid(-near), reference_sigmoid(near)).passed
 
 
-def test_finite_difference_tolerance_takes_another_order_but_no_other_formula():
+def test_a_sigmoid_in_float32_earns_the_formula_but_not_the_precision_point():
+    z = np.concatenate([np.linspace(-1000, 1000, 2001), np.linspace(-50, 50, 2001), [-24.4, 24.4, 0.0]])
+    with np.errstate(over="ignore"):
+        single = reference_sigmoid(z.astype(np.float32)).astype(np.float32)
+    assert judged("2.2.1/values", {"z": z}, single, reference_sigmoid(z)).passed
+    assert judged("2.2.1/any-shape", {"z": z}, single, reference_sigmoid(z)).passed
+    assert not judged("2.2.1/precision", {"z": z}, single, reference_sigmoid(z)).passed
+
+
+def test_finite_difference_tolerance_takes_another_order_and_float32_but_no_other_formula():
     rng = np.random.default_rng(1)
     spec = checks._coupled(rng, 5)
     from hwtools.grade.probes import known_function
@@ -212,10 +225,17 @@ def test_finite_difference_tolerance_takes_another_order_but_no_other_formula():
     reordered = np.array([f(x + h[i] * eye[i]) / (2 * h[i]) - f(x - h[i] * eye[i]) / (2 * h[i]) for i in range(5)])
     halved = np.array([0.5 * (f(x + h[i] * eye[i]) - f(x - h[i] * eye[i])) / h[i] for i in range(5)])
     half_steps = np.array([(f(x + h[i] / 2 * eye[i]) - f(x - h[i] / 2 * eye[i])) / h[i] for i in range(5)])
+    forward = np.array([(f(x + h[i] * eye[i]) - f(x)) / h[i] for i in range(5)])
+    first_step = np.array([(f(x + h[0] * eye[i]) - f(x - h[0] * eye[i])) / (2.0 * h[0]) for i in range(5)])
+    x32, h32 = x.astype(np.float32), h.astype(np.float32)
+    single = np.array([(np.float32(f(x32 + h32[i] * eye[i].astype(np.float32))) -
+                        np.float32(f(x32 - h32[i] * eye[i].astype(np.float32)))) / (np.float32(2) * h32[i])
+                       for i in range(5)], dtype=np.float32)  # every step of it in float32, f's values too
     args = {"x": x, "h": h}
-    assert judged("1.2.1/equation-3", args, reordered, reference).passed
-    assert judged("1.2.1/equation-3", args, halved, reference).passed
-    assert not judged("1.2.1/equation-3", args, half_steps, reference).passed
+    for right in (reordered, halved, reference.astype(np.float32), single):
+        assert judged("1.2.1/equation-3", args, right, reference).passed
+    for wrong in (half_steps, forward, 2 * reference, first_step):
+        assert not judged("1.2.1/equation-3", args, wrong, reference).passed
 
 
 def test_no_hidden_input_repeats_a_visible_one():
@@ -323,6 +343,8 @@ VERDICTS = {
                  "    column[i, 0] = (f(x + e) - f(x - e)) / (2 * h[i])\nreturn column", 0),
     "a sigmoid that breaks on a single number (iterates over z)": (
         "2.2.1", "values = np.array([1 / (1 + np.exp(-v)) for v in z])", 1.7),
+    "a sigmoid in float32 (the formula right, float32 precision)": (
+        "2.2.1", "values = (1 / (1 + np.exp(-np.clip(z, -80, 80).astype(np.float32)))).astype(np.float32)", 1.5),
 }
 
 
