@@ -25,7 +25,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import TODO_BY_ID, Grader, blocks, checks
+from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging
+from hwtools.grade.episodes import Environments, Records
 from hwtools.grade.class_feedback import todo_markdown
 from hwtools.grade.feedback import failure_words, render
 from test_grading import full_points, parse_wrong_solution, points
@@ -252,6 +253,79 @@ def test_no_hidden_input_repeats_a_visible_one():
             for name, value in args.items():  # nor does it read as one where feedback shows a visible input
                 if isinstance(value, np.ndarray) and np.unique(value).size >= 3:
                     assert checks.show(value) not in shown, (b.id, name, checks.show(value))
+
+
+# --------------------------------------------------------------------------------------------
+# 1.3.1 on the grader's records, whatever door the episodes came through (no sandbox)
+# --------------------------------------------------------------------------------------------
+
+
+def eval_result(episodes, value, again=None):
+    """A result of the eval_params probe whose records hold ``episodes`` (episodes.Episode)."""
+    records = Records()
+    records.episodes = list(episodes)
+    return {"status": "ok", "error": "", "warnings": [], "records": records.arrays(),
+            "values": {"value": np.asarray(value), "value_again": np.asarray(value if again is None else again)}}
+
+
+def own_loop(params, start, steps, seed=None, finished=True, actions=None):
+    """An own-loop episode of ``steps`` steps from ``start``, with the actions of CartPoleLinearPolicy(params)."""
+    envs, rng = Environments(), np.random.default_rng(steps)
+    env = envs.get(envs.make()[0])
+    episode = envs.reset(env, seed, start)
+    for t in range(steps):
+        obs = env.last_obs
+        action = int(np.dot(params, obs) < 0) if actions is None else actions
+        envs.step(env, action, [rng.normal(size=4), 1.0, finished and t == steps - 1, False])
+    return episode
+
+
+def test_own_loop_episodes_count_when_their_actions_are_the_policys():
+    params, count = np.array([0.1, -0.4, 0.9, 0.3]), 2
+    args = {"params": params, "num_rollouts": count, "seed": 3}
+    starts = [np.array([0.01 * k, 0.02, -0.01, 0.0]) for k in range(count)]
+    episodes = [own_loop(params, start, 10 + k, seed=3 + k) for k, start in enumerate(starts)] * 2
+    result = eval_result(episodes, 10.5)
+    assert behaviour("1.3.1/mean-reward").judge(args, result, None, []).passed
+    assert behaviour("1.3.1/different-starts").judge(args, result, None, []).passed
+    assert behaviour("1.3.1/repeatable").judge(args, result, None, []).passed
+    pushed_left = [own_loop(params, start, 10 + k, seed=3 + k, actions=0) for k, start in enumerate(starts)] * 2
+    verdict = behaviour("1.3.1/mean-reward").judge(args, eval_result(pushed_left, 10.5), None, [])
+    assert not verdict.passed and "not those of CartPoleLinearPolicy(params)" in verdict.actual
+    stopped = [own_loop(params, start, 10 + k, seed=3 + k, finished=False) for k, start in enumerate(starts)] * 2
+    verdict = behaviour("1.3.1/mean-reward").judge(args, eval_result(stopped, 10.5), None, [])
+    assert not verdict.passed and "stopped before it ended" in verdict.actual
+
+
+def test_repeatable_means_the_same_start_states_and_the_same_number():
+    params, args = np.zeros(4), {"params": np.zeros(4), "num_rollouts": 2, "seed": 3}
+    first = [own_loop(params, np.array([0.01, 0.0, 0.0, k]), 9) for k in (0.01, 0.02)]
+    continued = [own_loop(params, np.array([0.01, 0.0, 0.0, k]), 9) for k in (0.03, 0.04)]
+    assert behaviour("1.3.1/repeatable").judge(args, eval_result(first + first[::-1], 9.0), None, []).passed
+    verdict = behaviour("1.3.1/repeatable").judge(args, eval_result(first + continued, 9.0), None, [])
+    assert not verdict.passed and "started from other states" in verdict.actual
+    assert not behaviour("1.3.1/repeatable").judge(args, eval_result(first + first, 9.0, 9.5), None, []).passed
+
+
+def test_a_reset_that_no_step_follows_is_no_episode():
+    envs = Environments()
+    env = envs.get(envs.make()[0])
+    records = Records()
+    records.episodes = [envs.reset(env, 7, np.zeros(4))]  # env.reset(seed=seed) to seed it, then reset() per episode
+    episode = envs.reset(env, None, np.full(4, 0.01))
+    envs.step(env, 1, [np.zeros(4), 1.0, True, False])
+    records.episodes.append(episode)
+    arrays = records.arrays()
+    assert arrays["episode_seeds"].tolist() == [-1] and arrays["episode_determined"].tolist() == [True]
+    assert arrays["step_episode"].tolist() == [0] and arrays["episode_rewards"].tolist() == [1.0]
+
+
+def test_property_points_lift_a_wrong_value_to_30_percent_at_most():
+    notes = []
+    passed = {"mean-reward": False, "different-starts": True, "repeatable": True}
+    assert judging._beside_a_right_value("1.3.1", 2.0, passed, notes) == 1.5 and "30%" in notes[0]
+    assert judging._beside_a_right_value("1.3.1", 1.0, passed | {"different-starts": False}, []) == 1.0
+    assert judging._beside_a_right_value("1.3.1", 5.0, passed | {"mean-reward": True}, []) == 5.0
 
 
 # --------------------------------------------------------------------------------------------

@@ -68,7 +68,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
                                   f"{limits[0]:.0f} s, memory limit {limits[1]:.0f} MiB")
         entry["notes"].extend(outcome.notes)
     reference = run["reference"] or {}
-    earned, warnings = 0.0, []
+    earned, warnings, passed_by_key = 0.0, [], {}
     for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
         verdicts, source = [], checks.cases_of(behaviour)
         for visible, phase in ((True, cases.visible), (False, cases.hidden)):
@@ -91,6 +91,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
         passed = bool(verdicts) and all(verdict.passed for _, _, verdict in verdicts)
         failed_on = None if passed else ("visible" if any(v and not d.passed for v, _, d in verdicts) else "hidden")
         earned += behaviour.points if passed else 0.0
+        passed_by_key[behaviour.key] = passed
         # The first visible input this check fails on, shown in full (the notebook's check cells show it per check).
         first = next(((args, verdict) for v, args, verdict in verdicts if v and not verdict.passed), None)
         visible_failure = None if first is None else {
@@ -108,11 +109,25 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
             else:
                 entry["first_failure"] = {"check": behaviour.description, "hidden": True,
                                           "input": "a hidden input (not shown)"}
-    entry["auto_earned"] = round(min(earned, info.auto), 2)
+    entry["auto_earned"] = round(min(_beside_a_right_value(todo, earned, passed_by_key, entry["notes"]), info.auto), 2)
     entry["notes"].extend(seen_notes)
     for warning in dict.fromkeys(warnings):
         entry["notes"].append(f"warning (not a failure): {scrub(warning)}")
     return entry
+
+
+def _beside_a_right_value(todo, earned, passed, notes):
+    """``earned`` with property points (``Behaviour.beside``) counted only up to ``checks.MOST_KEPT``
+    of the TODO where the value they stand beside is wrong: repeatable episodes do not make a
+    wrong mean partly right."""
+    lifted = [b for b in checks.BEHAVIOURS_BY_TODO[todo] if b.beside and passed[b.key] and not passed[b.beside]]
+    if not lifted:
+        return earned
+    capped = max(earned - sum(b.points for b in lifted), min(earned, checks.MOST_KEPT * TODO_BY_ID[todo].auto))
+    if capped < earned:
+        notes.append(f"the points of its checks of properties ({', '.join(b.key for b in lifted)}) count only up to "
+                     f"{checks.MOST_KEPT:.0%} of TODO {todo} while its value is wrong")
+    return capped
 
 
 def seen(todo, read, layout):
