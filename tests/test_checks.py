@@ -476,6 +476,56 @@ def assert_same_visible_verdicts(grade, shown, todos):
             assert previewed == graded, (todo, previewed, graded)
 
 
+def test_the_line_a_failing_check_prints_rebuilds_its_input_in_the_student_edition(student_edition):
+    """Each visible case's line of Python, run in the student edition (its own hwtools and hwlib),
+    gives the input the check gave the student's function."""
+    from hwtools.cases import visible_case
+    from hwtools.grade.probes import known_function, rebuild_line
+
+    edition, env = student_edition
+    lines = {case_id: rebuild_line(case_id, b.probe) for todo in checks.GRADED_TODOS
+             for case_id, b, _ in checks.case_set(todo).visible}
+    assert lines["1.3.3/converges/v0"] == "" and all(line for case_id, line in lines.items() if "1.3.3" not in case_id)
+    script = "import json, numpy as np\nout = {}\n"
+    for case_id, line in lines.items():
+        if line:
+            names = line.split("; ", 1)[1].split(" = ", 1)[0]
+            script += f"{line}\nout[{case_id!r}] = digest([{names}])\n"
+    script = DIGEST + script + "print(json.dumps(out))\n"
+    run = subprocess.run([sys.executable, "-c", script], cwd=edition, env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    shown = json.loads(run.stdout)
+    namespace = {}
+    exec(DIGEST, namespace)
+    for case_id, line in lines.items():
+        if line:
+            value, single = visible_case(case_id), "," not in line.split("; ", 1)[1].split(" = ", 1)[0]
+            assert shown[case_id] == json.loads(json.dumps(namespace["digest"]([value] if single else list(value)))), case_id
+    # and what the grader gave: the finite-difference case itself
+    case_id, _, args = checks.case_set("1.2.1").visible[0]
+    f, x, h = visible_case(case_id)
+    assert np.array_equal(x, args["x"]) and np.array_equal(h, args["h"]) and f(x) == known_function(args["f"])(x)
+
+
+DIGEST = """
+def digest(values):
+    import numpy as np
+    out = []
+    for value in values:
+        if callable(value):
+            out.append("a function")
+        elif isinstance(value, dict):
+            out.append({key: np.asarray(item).tolist() for key, item in sorted(value.items())})
+        elif hasattr(value, "classifiers"):
+            out.append([np.asarray(c.weights).tolist() for c in value.classifiers])
+        elif hasattr(value, "weights"):
+            out.append(np.asarray(value.weights).tolist())
+        else:
+            out.append(np.asarray(value).tolist())
+    return out
+"""
+
+
 @pytest.mark.parametrize("path", natural_solutions(), ids=lambda path: path.stem)
 def test_preview_gives_the_grade_of_natural_solutions_on_the_visible_checks(grader, layout, student_edition, tmp_path,
                                                                          path):

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, served, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, mistakes, served, write_answer_key
 from hwtools.grade.feedback import render
 from cheats import leak_search
 from process_watch import live_processes
@@ -135,6 +135,15 @@ def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, 
     # 2.1.1 is graded by hand; the check shown for its grader must not blame the derivation for another TODO's mistake
     derivation = next(entry for entry in result["todos"] if entry["id"] == "2.1.1")
     assert todo == "2.1.1" or all(check["passed"] for check in derivation["checks"])
+    # the feedback names the mistake, in the file's own words, first in the first visible failure
+    diagnosis = mistakes.read_wrong_solution(path).diagnosis
+    assert (entry.get("mistake") or {}).get("diagnosis") == diagnosis, (path.name, entry.get("mistake"))
+    assert entry["mistake"]["id"] in {w.id for w in mistakes.read_wrong_solutions(WRONG) if w.diagnosis == diagnosis}
+    named = next(check["visible_failure"] for check in entry["checks"] if check["failed_on"] == "visible")
+    assert list(named)[0] == "mistake" and named["mistake"] == diagnosis
+    if todo != "1.3.3":  # and the one line of Python that rebuilds the visible input (1.3.3's is a setting)
+        assert named["reproduce"].startswith("from hwtools.cases import visible_case; ") and "\n" not in named["reproduce"]
+    assert all(other.get("mistake") is None for other in result["todos"] if other["id"] != todo)
 
 
 # Mistakes the issue names, with the points they keep: the credit follows what is right.
@@ -194,6 +203,7 @@ def test_natural_solution_earns_every_point(grader, layout, tmp_path, path):
     assert points(result) == full_points(), render(result)
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
     assert all(check["passed"] for check in entry["checks"]), render(result)
+    assert not any(other.get("mistake") for other in result["todos"])  # no correct solution is named a mistake
 
 
 # A correct solution of each TODO that calls another TODO's function (each one it could use): the

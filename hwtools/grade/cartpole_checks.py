@@ -407,4 +407,15 @@ def judge_learning_rate(args, result, expected, services):
     at = converged_at(run["rewards"], top)
     actual = f"LEARNING_RATE = {show(value)}: rewards {show(run['rewards'], 25)}; " + \
         (f"converged at iteration {at}" if at is not None else "never converged")
-    return Verdict(at is not None and at <= deadline, want, actual)
+    passed = at is not None and at <= deadline
+    return Verdict(passed, want, actual, rule="" if passed else _learning_rate_rule(run["rewards"], top, at))
+
+
+def _learning_rate_rule(rewards, top, at):
+    """The known mistake a run that does not converge in time shows: "overshoots" (a reward falls
+    below half the best one before it: a step too far), "too_slow" (no such fall, and it ends
+    higher than it started: still climbing, or converged too late), or none."""
+    rewards = np.asarray(rewards, dtype=np.float64)
+    if np.any(rewards < 0.5 * np.maximum.accumulate(rewards)):
+        return "overshoots"
+    return "too_slow" if at is not None or rewards[-1] > rewards[0] else ""

@@ -64,6 +64,9 @@ NEEDS = {
     "2.3.1": ("2.1.1", "2.2.1", "2.2.2", "2.2.3"),
 }
 SETTINGS_ONLY = {"1.3.3": ("hwlib/settings.py",)}  # TODOs whose kit holds only these files
+# The other TODOs whose code a check runs in the student edition's preview, which has no reference:
+# its server is the student's own kit, and 1.3.3's training run is the student's 1.1.1-1.3.2 (blame.py).
+PREVIEW_NEEDS = NEEDS | {"1.3.3": ("1.1.1", "1.2.1", "1.3.1", "1.3.2")}
 
 
 @dataclass(frozen=True)
@@ -139,8 +142,8 @@ BEHAVIOURS = (
               "differences of step fd_step from eval_params calls with num_rollouts_per_eval episodes, and "
               "rewards[t] is eval_params of the parameters after update t (on the grader's records of every "
               "evaluation)", "train_real", make_real_training, judge_real_rewards, visible_count=1),
-    Behaviour("1.3.3", "converges", 2, "with your LEARNING_RATE, the notebook's training run (the reference's "
-              "training code, settings.TRAINING_SEED, from zeros) reaches reward 500 within 7 iterations and "
+    Behaviour("1.3.3", "converges", 2, "with your LEARNING_RATE, the notebook's training run (settings.TRAINING_SEED, "
+              "from zeros; the note says whose training code it ran) reaches reward 500 within 7 iterations and "
               "stays there", "settings_value", make_learning_rate, judge_learning_rate, visible_count=1,
               services=_learning_rate_services),
     Behaviour("2.1.1", "gradient", 0, "log_likelihood_gradient equals the summed gradient of equation (7), also "

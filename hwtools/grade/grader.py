@@ -29,7 +29,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from hwtools.grade import answer_key as keys
-from hwtools.grade import blocks, broker, checks, judging
+from hwtools.grade import blame, blocks, broker, checks, judging, mistakes
 from hwtools.grade.answer_key import ANSWER_KEY
 from hwtools.grade.channel import fingerprint
 from hwtools.grade.reference import ReferencePool, ServerFailed, runtime_files
@@ -192,18 +192,15 @@ class Grader:
         pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
         graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
         try:
-            with ThreadPoolExecutor(max_workers=self.jobs) as executor:
-                runs = dict(zip(graded, executor.map(lambda todo: self._run_todo(todo, read, layout, pool), graded)))
-            needed = [need for todo in graded for need in self._service_requests(todo, runs[todo])]
-            services = self._services(needed, pool)
+            runs, services = self._run_all(graded, read, layout, pool)
+            for todo in selected:
+                result["todos"].append(judging.judge_todo(todo, runs.get(todo), services, self.cases.get(todo),
+                                                          self._expected, self._scrub, self._limits,
+                                                          judging.seen(todo, read, layout), self.known_mistakes))
+            self._blame(result["todos"], read, layout, pool)
         finally:
             if pool is not None and pool is not self.pool:
                 pool.close()
-        limits = (self.sandbox.time_limit, self.sandbox.memory_limit / 2**20)
-        for todo in selected:
-            result["todos"].append(judging.judge_todo(todo, runs.get(todo), services, self.cases.get(todo),
-                                                      self._expected, self._scrub, limits,
-                                                      judging.seen(todo, read, layout)))
         entries = result["todos"]
         result["total"] = {
             "auto_earned": round(sum(entry["auto_earned"] for entry in entries), 2),
@@ -214,6 +211,30 @@ class Grader:
         return result
 
     # ---- running ------------------------------------------------------------------------
+
+    @property
+    def _limits(self):
+        return self.sandbox.time_limit, self.sandbox.memory_limit / 2**20
+
+    def _run_all(self, todos, read, layout, pool):
+        """({todo: run}, {service key: result}) of the TODOs ``todos``, side by side."""
+        with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+            runs = dict(zip(todos, executor.map(lambda todo: self._run_todo(todo, read, layout, pool), todos)))
+        needed = [need for todo in todos for need in self._service_requests(todo, runs[todo])]
+        return runs, self._services(needed, pool)
+
+    def _blame(self, entries, read, layout, pool):
+        """In the preview, name the TODO at fault for a failing check (``blame.py``): the TODOs it
+        calls are judged on their visible checks too (run here if they were not selected)."""
+        preview = self.reference is None
+        judged = {entry["id"]: entry for entry in entries}
+        extra = [todo for todo in checks.GRADED_TODOS if preview and todo in blame.needed(entries) and todo not in judged]
+        if extra:
+            runs, services = self._run_all(extra, read, layout, pool)
+            judged.update({todo: judging.judge_todo(todo, runs[todo], services, self.cases[todo], self._expected,
+                                                    self._scrub, self._limits, []) for todo in extra})
+        stubs = {todo for todo, bodies in read.bodies.items() if all(blame.untouched(body) for body in bodies)}
+        blame.apply(entries, judged, stubs, preview)
 
     def _parsed_bodies(self, todo, read, layout):
         """The student's blocks for ``todo``, or a string saying why they cannot be used."""
@@ -313,18 +334,52 @@ class Grader:
             raise entry["error"]
         return entry["value"]
 
+    # ---- known mistakes: what each wrong solution gives on the visible inputs (mistakes.py) ----
+
+    def known_mistakes(self, todo):
+        """The known mistakes' table (``mistakes.py``): from the answer key, or, with a reference,
+        each of its wrong solutions of ``todo`` run on the visible inputs like a student's code
+        (memoized per grader: a class pays for it once)."""
+        if self.key is not None:
+            return self.key.get("mistakes", [])
+        if self.reference is None:
+            return []
+        return self._memoized(("mistakes", todo), lambda: self._mistake_table(todo))
+
+    def _mistake_table(self, todo):
+        wrong = [w for w in mistakes.read_wrong_solutions(self.reference / mistakes.WRONG_SOLUTIONS) if w.todo == todo]
+        visible = checks.CaseSet(todo, visible=self.cases[todo].visible)
+
+        def signature(solution):
+            with tempfile.TemporaryDirectory(prefix="hwgrade-mistake-") as scratch:
+                blocks.write_submission(self.layout, scratch, {todo: list(solution.bodies)}, others="stub")
+                read = blocks.read_submission(Path(scratch), self.layout)
+            files = self._composite(todo, read, self.layout)
+            if isinstance(files, str):
+                return None
+            student = self._memoized(("visible", blocks.files_digest(files), todo),
+                                     lambda: self._run_now(todo, files, _phase(visible.visible), [], self.pool))
+            run = {"student": student, "reference": self._reference_values(todo)}
+            services = self._services(self._service_requests(todo, run, visible), self.pool)
+            entry = judging.judge_todo(todo, run, services, visible, self._expected, self._scrub, self._limits, [])
+            return mistakes.table_entry(solution, mistakes.signature(visible.visible, student[1], entry))
+
+        with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+            return [known for known in executor.map(signature, wrong) if known is not None]
+
     # ---- services: the reference re-scores what a student's run produced ------------------
 
-    def _service_requests(self, todo, run):
+    def _service_requests(self, todo, run, cases=None):
         student = run["student"]
         if isinstance(student, str):
             return []
         outcome, results = student
+        cases = cases or self.cases[todo]
         needed = []
         for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
             if behaviour.services is None:
                 continue
-            for case_id, case_behaviour, args in self.cases[todo].visible + self.cases[todo].hidden:
+            for case_id, case_behaviour, args in cases.visible + cases.hidden:
                 if case_behaviour is checks.cases_of(behaviour):
                     needed.extend(behaviour.services(args, results.get(case_id) or broker.missing(outcome)))
         return needed
@@ -367,4 +422,5 @@ def write_answer_key(reference_kit, out_path, python=None, isolation="auto"):
                     if result["status"] != "ok":
                         raise GradingError(f"the reference fails visible check {case_id}: {result['error']}")
                     expected[case_id] = result["values"]
-        return keys.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path)
+        known = [entry for todo in checks.GRADED_TODOS for entry in grader.known_mistakes(todo)]
+        return keys.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path, known)
