@@ -181,6 +181,30 @@ def test_a_mistake_keeps_the_points_of_what_is_right_and_costs_nothing_elsewhere
     assert points(result) == full_points() | {todo: kept}, render(result)
 
 
+def test_the_class_sees_its_mistakes_beside_the_gradebook(grader, layout, tmp_path):
+    """A class of three: one right, two with a forward difference in 1.2.1. Beside the gradebook:
+    each check's pass rate and each named mistake's count, as a table and a bar chart."""
+    from hwtools.grade import classroom
+
+    forward = mistakes.read_wrong_solution(WRONG / "forward_difference.txt")
+    for student, bodies in (("ada", {}), ("bob", {"1.2.1": list(forward.bodies)}), ("cy", {"1.2.1": list(forward.bodies)})):
+        blocks.write_submission(layout, tmp_path / "class" / student, bodies, others="reference")
+    report = classroom.grade_class(tmp_path / "class", tmp_path / "out" / "grades.csv", tmp_path / "out" / "feedback",
+                                   grader=grader, jobs=2)
+    assert len(report.students) == 3
+    import csv
+
+    with open(tmp_path / "out" / "grades-checks.csv", newline="", encoding="utf-8") as handle:
+        rows = {(row["kind"], row["id"]): row for row in csv.DictReader(handle)}
+    equation3 = rows["check", "1.2.1/equation-3"]
+    assert (equation3["students"], equation3["count"], equation3["share"]) == ("3", "1", "0.3333")
+    assert rows["check", "2.2.1/values"]["count"] == "3"
+    named = rows["mistake", "forward_difference"]
+    assert (named["todo"], named["count"], named["what"]) == ("1.2.1", "2", forward.diagnosis)
+    assert [key for key in rows if key[0] == "mistake"] == [("mistake", "forward_difference")]
+    assert (tmp_path / "out" / "grades-checks.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 # --------------------------------------------------------------------------------------------
 # Correct solutions written another way: every point
 # --------------------------------------------------------------------------------------------
