@@ -231,6 +231,7 @@ def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition
         first = " ".join(" ".join(lines[:next(i for i, line in enumerate(lines)
                                               if line.lstrip().startswith(("pass ", "FAIL ")))]).split())  # wrapped
         assert f"probably caused by TODO {at_fault[0]}, which fails its own check" in first, first
+        assert "mistake" not in entries[todo]  # a mistake its answers match is most likely the TODO at fault's
     assert not any(entry.get("blamed_on") for entry in graded["todos"])  # the grade runs the reference's 1.2.1
     notes = " ".join(entries["1.3.3"]["notes"])  # the 1.3.3 check says whose training code it ran
     assert "used your own code for TODOs 1.1.1, 1.2.1, 1.3.1, 1.3.2" in notes

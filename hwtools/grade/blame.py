@@ -73,10 +73,18 @@ def apply(entries, judged, stubs, preview):
         blamed = faults(todo)
         entry["blamed_on"], entry["blame"] = blamed, _in_words(blamed)
         entry["auto_earned"] = TODO_BY_ID[todo].auto
+        _unname_mistake(entry)  # the mistake it matches is most likely the TODO at fault's
         entry["notes"].append(f"its checks ran your {' and '.join(f'TODO {t}' for t in blamed)}; its points count as "
                               f"earned in this preview, as the grade (which runs it with the reference's "
                               f"{' and '.join(blamed)}) gives them if it is right: fix {' and '.join(blamed)} first, "
                               "then run this check again")
+
+
+def _unname_mistake(entry):
+    entry.pop("mistake", None)
+    for failure in [check["visible_failure"] for check in entry["checks"]] + [entry["first_failure"]]:
+        if failure:
+            failure.pop("mistake", None)
 
 
 def training_note(entry, preview):
