@@ -8,10 +8,11 @@ file says, besides its code, what a student is told when their answers look like
     # rule: overshoots        (optional: a judge names it by this rule instead of by its values)
 
 A mistake's *signature* is what it gives on the visible inputs of its TODO: per visible case the
-values it answered (or its error's type) and the episodes the grader recorded (how many, from how
+values it answered (or its error's text) and the episodes the grader recorded (how many, from how
 many start states), and which visible checks it fails. A student's failing answer is matched
 against every known mistake of its TODO (``name``): all visible cases alike (within the check's
-tolerance) and the same visible checks failed, or the rule a judge gave (``Verdict.rule``).
+tolerance, the same error's text) and the same visible checks failed, or the rule a judge gave
+(``Verdict.rule``).
 Where the matches disagree, nothing is named. Only visible inputs are compared, and the words
 come from the files: no hidden input, no reference line.
 
@@ -77,7 +78,7 @@ def read_wrong_solutions(folder):
 class Signature:
     """What one answer gives on the visible inputs of one TODO (see the module docstring)."""
 
-    cases: dict = field(default_factory=dict)  # case id -> {"values": {name: array}} or {"error": type}, + episodes
+    cases: dict = field(default_factory=dict)  # case id -> {"values": {name: array}} or {"error": text}, + episodes
     failing: tuple = ()  # keys of the visible checks it fails
     rules: tuple = ()  # the rules its failing visible verdicts gave
 
@@ -100,7 +101,7 @@ def signature(visible, results, entry):
         if result["status"] == "ok":
             case = {"values": {name: np.asarray(value) for name, value in result["values"].items()}}
         else:
-            case = {"error": str(result.get("error", "")).split(":", 1)[0].strip()[:60]}
+            case = {"error": str(result.get("error", ""))[:200]}  # its whole text: the same mistake, the same words
         case["episodes"] = _episodes(result)
         cases[case_id] = case
     failing = tuple(sorted(check["id"].split("/", 1)[1] for check in entry["checks"] if check["failed_on"] == "visible"))
