@@ -118,7 +118,8 @@ class Grader:
             self.layout = blocks.load_layout(self.reference)
             self.reference_bodies = self.layout.reference_bodies()
             self.hidden = load_hidden_checks(self.reference)
-            self.key = None
+            self.wrong_solutions = mistakes.read_wrong_solutions(self.reference / mistakes.WRONG_SOLUTIONS)  # read now:
+            self.key = None  # the Gradescope bundle deletes instructor/ once the grader is made
         else:
             path = Path(answer_key) if answer_key is not None else ANSWER_KEY
             if not path.is_file():
@@ -126,6 +127,7 @@ class Grader:
                                    f"or put the answer key at {path}")
             self.key = read_answer_key(path)
             self.layout = self.reference_bodies = self.hidden = None
+            self.wrong_solutions = []
         self.cases = {todo: checks.case_set(todo, self.hidden) for todo in checks.GRADED_TODOS}
         if self.key is not None:
             try:
@@ -347,7 +349,7 @@ class Grader:
         return self._memoized(("mistakes", todo), lambda: self._mistake_table(todo))
 
     def _mistake_table(self, todo):
-        wrong = [w for w in mistakes.read_wrong_solutions(self.reference / mistakes.WRONG_SOLUTIONS) if w.todo == todo]
+        wrong = [w for w in self.wrong_solutions if w.todo == todo]
         visible = checks.CaseSet(todo, visible=self.cases[todo].visible)
 
         def signature(solution):
