@@ -28,6 +28,7 @@ import pytest
 from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging
 from hwtools.grade.episodes import Environments, Records
 from hwtools.grade.class_feedback import todo_markdown
+from hwtools.check import check_lines
 from hwtools.grade.feedback import failure_words, render
 from test_grading import full_points, parse_wrong_solution, points
 
@@ -137,11 +138,15 @@ def test_an_answer_is_its_numbers_in_a_row_where_the_handout_says_so():
 
 
 def test_every_failure_has_one_wording_in_every_report():
-    failure = {"check": "sigma(z) ...", "hidden": False, "input": "z=[1]", "expected": "[0.731059]",
+    failure = {"check": "sigma(z) ...", "hidden": False,
+               "mistake": "your values equal 1 / (1 + e^z), the sign of the exponent flipped", "input": "z=[1]",
+               "reproduce": 'from hwtools.cases import visible_case; z = visible_case("2.2.1/values/v0")  # then sigmoid(z)',
+               "expected": "[0.731059]",
                "actual": "[0.5]", "difference": "first difference at index [0] (z[0] = 1): expected 0.731059, actual 0.5",
                "tolerance": "|actual - expected| <= 1e-12 * |expected| + 1e-15"}
     headline, fields = failure_words(failure)
-    assert [name for name, _ in fields] == ["input", "expected", "actual", "difference", "tolerance"]
+    assert [name for name, _ in fields] == ["mistake", "input", "reproduce", "expected", "actual", "difference",
+                                            "tolerance"]
     entry = {"id": "2.2.1", "title": "sigmoid", "auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0,
              "manual": "", "status": "graded", "notes": [], "first_failure": failure,
              "checks": [{"check": "sigma(z) ...", "points": 2, "passed": False, "failed_on": "visible",
@@ -157,6 +162,13 @@ def test_every_failure_has_one_wording_in_every_report():
         assert plain(headline) in plain(report), name
         for label, words in fields:
             assert plain(words) in plain(report) and f"{label}:" in report, (name, label)
+        assert failure["reproduce"] in report.splitlines() or any(line.endswith(failure["reproduce"])
+                                                                 for line in report.splitlines()), name  # one line
+    entry["checks"][0]["visible_failure"] = {k: v for k, v in failure.items() if k not in ("check", "hidden")}
+    cell = "\n".join(check_lines(entry))  # the notebook's check cell
+    for label, words in fields:
+        assert plain(words) in plain(cell) and f"{label}:" in cell, ("check cell", label)
+    assert any(line.endswith(failure["reproduce"]) for line in cell.splitlines())
     hidden = {"check": "sigma(z) ...", "hidden": True, "input": "a hidden input (not shown)"}
     headline, fields = failure_words(hidden)
     assert fields == [] and "on a hidden input" in headline
