@@ -1,18 +1,20 @@
 """Points and feedback for one TODO: each behaviour's verdicts on its cases, in the grader's own words.
 
 ``judge_todo`` turns what a run answered (``broker.run_cases``) into the TODO's entry of the
-result dict: points per behaviour (every input, visible and hidden, must pass), the first failing
-visible check with its input, expected and actual value, and notes. What a student may read is
-built from the grader's words and the student's own values on visible inputs only; a hidden
-input's failure shows only the check's description. Text that holds a line of the reference
-solution is replaced (``Scrubber``).
+result dict: points per behaviour (every input, visible and hidden, must pass; property points
+only up to 30% beside a wrong value), the first failing visible check with the known mistake the
+answers match (``mistakes.py``), its input and the line that rebuilds it
+(``probes.rebuild_line``), expected and actual value, and notes. What a student may read is built
+from the grader's words and the student's own values on visible inputs only; a hidden input's
+failure shows only the check's description. Text that holds a line of the reference solution is
+replaced (``Scrubber``).
 """
 
 from __future__ import annotations
 
 from hwtools.grade import broker, checks, mistakes, suspects
-from hwtools.grade.probes import rebuild_line
 from hwtools.grade.channel import fingerprint, text
+from hwtools.grade.probes import rebuild_line
 from hwtools.todos import TODO_BY_ID
 
 _STATUS = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed"}
