@@ -545,7 +545,9 @@ def test_a_block_that_does_not_parse_costs_only_its_todo(grader, layout, tmp_pat
 
 def test_answer_key_grades_the_visible_checks_of_a_student_edition(answer_key, layout, tmp_path):
     key_file = tmp_path / "key.json"
-    key_file.write_text(json.dumps({"version": 1, "visible_cases": "stale", "expected": {}}))
+    from hwtools.grade.answer_key import ANSWER_KEY_VERSION
+
+    key_file.write_text(json.dumps({"version": ANSWER_KEY_VERSION, "visible_cases": "stale", "expected": {}}))
     with pytest.raises(Exception, match="other visible checks"):
         Grader(None, answer_key=key_file)
     good = tmp_path / "good.json"
