@@ -3,9 +3,12 @@
 A notebook's check cell is one line, ``check("1.2.1")`` (the convention of otter-grader's
 ``grader.check("q1")``). It runs ``python -m hwtools.grade KIT --todo 1.2.1`` in a subprocess, the
 same command and the same verdicts a student gets in a terminal, and prints one line per check
-of that TODO: ``pass``, or ``FAIL`` with the visible input, the expected and the actual value, where
-they differ and the tolerance (the same fields as every report, ``feedback.FAILURE_FIELDS``).
-An untouched TODO (its stub raises ``TodoNotDone``) prints "TODO 1.2.1 is not done yet".
+of that TODO: ``pass``, or ``FAIL`` with the known mistake the answers match (if one does), the
+visible input and the line of Python that rebuilds it (``hwtools.cases``), the expected and the
+actual value, where they differ and the tolerance (the same fields as every report,
+``feedback.FAILURE_FIELDS``). An untouched TODO (its stub raises ``TodoNotDone``) prints
+"TODO 1.2.1 is not done yet"; a check whose failure another TODO probably caused says so first
+("probably caused by TODO 1.2.1, which fails its own check": ``hwtools/grade/blame.py``).
 
 * In the student edition the grader compares with the answer key the release build wrote,
   runs the student's own code for the other TODOs, and only has visible checks.
@@ -14,7 +17,8 @@ An untouched TODO (its stub raises ``TodoNotDone``) prints "TODO 1.2.1 is not do
   read the same in both editions, and the stored outputs are stable for nbval.
 
 On the visible inputs its verdicts are the instructor's grade's whenever the other TODOs a check
-runs are right (``tests/test_check.py`` compares them on wrong solutions).
+runs are right (``tests/test_check.py`` compares them on wrong solutions); where one is wrong, the
+check names it and keeps the points the grade would give.
 
 The grader reads the files on disk, so a check sees the code as last saved, even when the
 notebook's kernel still runs older code (``hwtools.notebook`` says so). Standard library only:
@@ -33,7 +37,7 @@ import tempfile
 import textwrap
 from pathlib import Path
 
-from hwtools.grade.feedback import FAILURE_FIELDS
+from hwtools.grade.feedback import FAILURE_FIELDS, field_lines
 from hwtools.todos import TODO_BY_ID
 
 KIT_ROOT = Path(__file__).resolve().parents[1]
@@ -213,6 +217,8 @@ def check_lines(entry):
     else:
         summary = f"all {len(checks)} visible checks pass" if passed == len(checks) else \
             f"{passed} of {len(checks)} visible checks pass"
+    if entry.get("blame"):  # the TODO at fault first (the preview: hwtools/grade/blame.py)
+        summary = f"{entry['blame']}; {summary}"
     lines = _wrap(f"TODO {todo} ({title}): {summary}", "")
     for check, ok in zip(checks, visible_pass):
         lines += _wrap(f"{'pass' if ok else 'FAIL'}  {check['check']}", "  ", hang=6)
@@ -220,7 +226,7 @@ def check_lines(entry):
         if failure:
             for name in FAILURE_FIELDS:  # the words of every report (feedback.failure_words)
                 if failure.get(name):
-                    lines += _wrap(f"{name + ':':<12}{failure[name]}", "        ")
+                    lines += field_lines(name, failure[name], "        ", WIDTH)
     for note in entry["notes"]:
         lines += _wrap(f"note: {note}", "  ")
     return lines
@@ -230,19 +236,11 @@ def check_lines(entry):
 # Which TODOs are untouched (their blocks still hold the stub), without running anything
 # --------------------------------------------------------------------------------------------
 
-_STUB_CODE = re.compile(r"(pass|raise ([\w.]+\.)?(TodoNotDone|NotImplementedError)\b.*"
-                        r"|from hwlib(\._todo)? import TodoNotDone|import hwlib(\._todo)?|[A-Za-z_]\w* = None)")
-
-
-def _is_stub(body):
-    code = [line.split("  #")[0].strip() for line in body if line.strip() and not line.strip().startswith("#")]
-    return all(_STUB_CODE.fullmatch(line) for line in code)
-
-
 def untouched_todos(kit=KIT_ROOT):
     """The TODO ids (in the handout's order) whose every code block in ``hwlib/`` and the notebooks'
     code cells is still the student edition's stub: comments, ``pass``, ``raise TodoNotDone(...)``
     or ``NAME = None``. Read from the files; nothing is run. (In the instructor's edition: none.)"""
+    from hwtools.grade.blame import untouched  # noqa: PLC0415 - the grader's reading of a stub
     from hwtools.grade.blocks import SubmissionError, find_blocks  # noqa: PLC0415 - the grader's marker reader
     from hwtools.markers import is_leftover  # noqa: PLC0415
 
@@ -263,4 +261,4 @@ def untouched_todos(kit=KIT_ROOT):
             continue
         for block in blocks:
             bodies.setdefault(block.todo, []).append(block.body)
-    return [todo for todo in TODO_BY_ID if todo in bodies and all(_is_stub(body) for body in bodies[todo])]
+    return [todo for todo in TODO_BY_ID if todo in bodies and all(untouched(body) for body in bodies[todo])]

@@ -204,6 +204,47 @@ def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_in
     assert any(line.startswith("  FAIL") for line in lines) and any("expected:" in line for line in lines)
 
 
+@pytest.mark.hidden  # needs the instructor's wrong solutions and reference
+def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition, tmp_path):
+    """1.2.1 and 2.2.1 wrong, everything else right: the preview runs the student's own 1.2.1 in
+    1.3.2 and 1.3.3 (and 2.2.1 in 2.2.2-2.3.1), so their checks may fail there; they are shown as
+    depending on the TODO at fault, keep their points, and the totals agree with the grade."""
+    from hwtools.grade import Grader
+
+    out = tmp_path / "preview.json"
+    run = subprocess.run([sys.executable, "-m", "hwtools.grade", str(wrong_edition), "--json", str(out)],
+                         cwd=wrong_edition, env={**os.environ, "PYTHONPATH": str(wrong_edition), "MPLBACKEND": "Agg"},
+                         capture_output=True, text=True, timeout=1200)
+    assert run.returncode == 0, run.stderr[-3000:]
+    preview = json.loads(out.read_text())
+    graded = Grader(KIT).grade(wrong_edition)
+    lost = {result["one_mistake_one_place"]: {e["id"] for e in result["todos"] if e["auto_earned"] < e["auto_possible"]}
+            for result in (preview, graded)}
+    assert lost[False] == lost[True] == {"1.2.1", "2.2.1"}, lost
+    assert preview["total"]["auto_earned"] == graded["total"]["auto_earned"]
+    entries = {entry["id"]: entry for entry in preview["todos"]}
+    blamed = {todo: entry["blamed_on"] for todo, entry in entries.items() if entry.get("blamed_on")}
+    assert blamed and set(blamed) <= {"1.3.2", "1.3.3", "2.1.1", "2.2.2", "2.2.3", "2.3.1"}, blamed
+    for todo, at_fault in blamed.items():
+        assert at_fault == (["1.2.1"] if todo.startswith("1.") else ["2.2.1"]), (todo, at_fault)
+        lines = check_lines(entries[todo])
+        first = " ".join(" ".join(lines[:next(i for i, line in enumerate(lines)
+                                              if line.lstrip().startswith(("pass ", "FAIL ")))]).split())  # wrapped
+        assert f"probably caused by TODO {at_fault[0]}, which fails its own check" in first, first
+        assert "mistake" not in entries[todo]  # a mistake its answers match is most likely the TODO at fault's
+    assert not any(entry.get("blamed_on") for entry in graded["todos"])  # the grade runs the reference's 1.2.1
+    notes = " ".join(entries["1.3.3"]["notes"])  # the 1.3.3 check says whose training code it ran
+    assert "used your own code for TODOs 1.1.1, 1.2.1, 1.3.1, 1.3.2" in notes
+    graded_notes = " ".join(next(e for e in graded["todos"] if e["id"] == "1.3.3")["notes"])
+    assert "used the reference's code for TODOs 1.1.1, 1.2.1, 1.3.1, 1.3.2" in graded_notes
+
+
+@pytest.mark.hidden  # the check of one TODO names the TODO at fault too (it judges the TODOs it calls)
+def test_a_check_cell_names_the_todo_at_fault(wrong_edition):
+    lines = check_lines(grade_todo("1.3.2", kit=wrong_edition))
+    assert "probably caused by TODO 1.2.1, which fails its own check" in " ".join(" ".join(lines[:2]).split()), lines
+
+
 def test_an_interrupt_ends_the_graders_subprocess(monkeypatch):
     started = []
     real_popen = subprocess.Popen

@@ -25,8 +25,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import TODO_BY_ID, Grader, blocks, checks
+from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging
+from hwtools.grade.episodes import Environments, Records
 from hwtools.grade.class_feedback import todo_markdown
+from hwtools.check import check_lines
 from hwtools.grade.feedback import failure_words, render
 from test_grading import full_points, parse_wrong_solution, points
 
@@ -136,11 +138,15 @@ def test_an_answer_is_its_numbers_in_a_row_where_the_handout_says_so():
 
 
 def test_every_failure_has_one_wording_in_every_report():
-    failure = {"check": "sigma(z) ...", "hidden": False, "input": "z=[1]", "expected": "[0.731059]",
+    failure = {"check": "sigma(z) ...", "hidden": False,
+               "mistake": "your values equal 1 / (1 + e^z), the sign of the exponent flipped", "input": "z=[1]",
+               "reproduce": 'from hwtools.cases import visible_case; z = visible_case("2.2.1/values/v0")  # then sigmoid(z)',
+               "expected": "[0.731059]",
                "actual": "[0.5]", "difference": "first difference at index [0] (z[0] = 1): expected 0.731059, actual 0.5",
                "tolerance": "|actual - expected| <= 1e-12 * |expected| + 1e-15"}
     headline, fields = failure_words(failure)
-    assert [name for name, _ in fields] == ["input", "expected", "actual", "difference", "tolerance"]
+    assert [name for name, _ in fields] == ["mistake", "input", "reproduce", "expected", "actual", "difference",
+                                            "tolerance"]
     entry = {"id": "2.2.1", "title": "sigmoid", "auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0,
              "manual": "", "status": "graded", "notes": [], "first_failure": failure,
              "checks": [{"check": "sigma(z) ...", "points": 2, "passed": False, "failed_on": "visible",
@@ -156,6 +162,13 @@ def test_every_failure_has_one_wording_in_every_report():
         assert plain(headline) in plain(report), name
         for label, words in fields:
             assert plain(words) in plain(report) and f"{label}:" in report, (name, label)
+        assert failure["reproduce"] in report.splitlines() or any(line.endswith(failure["reproduce"])
+                                                                 for line in report.splitlines()), name  # one line
+    entry["checks"][0]["visible_failure"] = {k: v for k, v in failure.items() if k not in ("check", "hidden")}
+    cell = "\n".join(check_lines(entry))  # the notebook's check cell
+    for label, words in fields:
+        assert plain(words) in plain(cell) and f"{label}:" in cell, ("check cell", label)
+    assert any(line.endswith(failure["reproduce"]) for line in cell.splitlines())
     hidden = {"check": "sigma(z) ...", "hidden": True, "input": "a hidden input (not shown)"}
     headline, fields = failure_words(hidden)
     assert fields == [] and "on a hidden input" in headline
@@ -198,10 +211,23 @@ def test_sigmoid_tolerances_see_clipping_and_nan():
     assert not judged("2.2.1/precision", {"z": z}, clip20, expected).passed  # not float64 precision
     assert not judged("2.2.1/values", {"z": z}, nan, expected).passed
     near = np.linspace(-20, 20, 401)
-    assert not judged("2.2.1/values", {"z": near}, reference_sigmoid(near) + 2e-15, reference_sigmoid(near)).passed
+    # float64 precision is the precision check's own sub-point, not the formula's
+    assert not judged("2.2.1/precision", {"z": near}, reference_sigmoid(near) + 2e-15, reference_sigmoid(near)).passed
+    cut = np.where(near > 10, 1.0, np.where(near < -10, 0.0, reference_sigmoid(near)))  # a cut-off, not a formula
+    assert not judged("2.2.1/values", {"z": near}, cut, reference_sigmoid(near)).passed
+    assert not judged("2.2.1/values", {"z": near}, reference_sigmoid(-near), reference_sigmoid(near)).passed
 
 
-def test_finite_difference_tolerance_takes_another_order_but_no_other_formula():
+def test_a_sigmoid_in_float32_earns_the_formula_but_not_the_precision_point():
+    z = np.concatenate([np.linspace(-1000, 1000, 2001), np.linspace(-50, 50, 2001), [-24.4, 24.4, 0.0]])
+    with np.errstate(over="ignore"):
+        single = reference_sigmoid(z.astype(np.float32)).astype(np.float32)
+    assert judged("2.2.1/values", {"z": z}, single, reference_sigmoid(z)).passed
+    assert judged("2.2.1/any-shape", {"z": z}, single, reference_sigmoid(z)).passed
+    assert not judged("2.2.1/precision", {"z": z}, single, reference_sigmoid(z)).passed
+
+
+def test_finite_difference_tolerance_takes_another_order_and_float32_but_no_other_formula():
     rng = np.random.default_rng(1)
     spec = checks._coupled(rng, 5)
     from hwtools.grade.probes import known_function
@@ -212,10 +238,17 @@ def test_finite_difference_tolerance_takes_another_order_but_no_other_formula():
     reordered = np.array([f(x + h[i] * eye[i]) / (2 * h[i]) - f(x - h[i] * eye[i]) / (2 * h[i]) for i in range(5)])
     halved = np.array([0.5 * (f(x + h[i] * eye[i]) - f(x - h[i] * eye[i])) / h[i] for i in range(5)])
     half_steps = np.array([(f(x + h[i] / 2 * eye[i]) - f(x - h[i] / 2 * eye[i])) / h[i] for i in range(5)])
+    forward = np.array([(f(x + h[i] * eye[i]) - f(x)) / h[i] for i in range(5)])
+    first_step = np.array([(f(x + h[0] * eye[i]) - f(x - h[0] * eye[i])) / (2.0 * h[0]) for i in range(5)])
+    x32, h32 = x.astype(np.float32), h.astype(np.float32)
+    single = np.array([(np.float32(f(x32 + h32[i] * eye[i].astype(np.float32))) -
+                        np.float32(f(x32 - h32[i] * eye[i].astype(np.float32)))) / (np.float32(2) * h32[i])
+                       for i in range(5)], dtype=np.float32)  # every step of it in float32, f's values too
     args = {"x": x, "h": h}
-    assert judged("1.2.1/equation-3", args, reordered, reference).passed
-    assert judged("1.2.1/equation-3", args, halved, reference).passed
-    assert not judged("1.2.1/equation-3", args, half_steps, reference).passed
+    for right in (reordered, halved, reference.astype(np.float32), single):
+        assert judged("1.2.1/equation-3", args, right, reference).passed
+    for wrong in (half_steps, forward, 2 * reference, first_step):
+        assert not judged("1.2.1/equation-3", args, wrong, reference).passed
 
 
 def test_no_hidden_input_repeats_a_visible_one():
@@ -232,6 +265,79 @@ def test_no_hidden_input_repeats_a_visible_one():
             for name, value in args.items():  # nor does it read as one where feedback shows a visible input
                 if isinstance(value, np.ndarray) and np.unique(value).size >= 3:
                     assert checks.show(value) not in shown, (b.id, name, checks.show(value))
+
+
+# --------------------------------------------------------------------------------------------
+# 1.3.1 on the grader's records, whatever door the episodes came through (no sandbox)
+# --------------------------------------------------------------------------------------------
+
+
+def eval_result(episodes, value, again=None):
+    """A result of the eval_params probe whose records hold ``episodes`` (episodes.Episode)."""
+    records = Records()
+    records.episodes = list(episodes)
+    return {"status": "ok", "error": "", "warnings": [], "records": records.arrays(),
+            "values": {"value": np.asarray(value), "value_again": np.asarray(value if again is None else again)}}
+
+
+def own_loop(params, start, steps, seed=None, finished=True, actions=None):
+    """An own-loop episode of ``steps`` steps from ``start``, with the actions of CartPoleLinearPolicy(params)."""
+    envs, rng = Environments(), np.random.default_rng(steps)
+    env = envs.get(envs.make()[0])
+    episode = envs.reset(env, seed, start)
+    for t in range(steps):
+        obs = env.last_obs
+        action = int(np.dot(params, obs) < 0) if actions is None else actions
+        envs.step(env, action, [rng.normal(size=4), 1.0, finished and t == steps - 1, False])
+    return episode
+
+
+def test_own_loop_episodes_count_when_their_actions_are_the_policys():
+    params, count = np.array([0.1, -0.4, 0.9, 0.3]), 2
+    args = {"params": params, "num_rollouts": count, "seed": 3}
+    starts = [np.array([0.01 * k, 0.02, -0.01, 0.0]) for k in range(count)]
+    episodes = [own_loop(params, start, 10 + k, seed=3 + k) for k, start in enumerate(starts)] * 2
+    result = eval_result(episodes, 10.5)
+    assert behaviour("1.3.1/mean-reward").judge(args, result, None, []).passed
+    assert behaviour("1.3.1/different-starts").judge(args, result, None, []).passed
+    assert behaviour("1.3.1/repeatable").judge(args, result, None, []).passed
+    pushed_left = [own_loop(params, start, 10 + k, seed=3 + k, actions=0) for k, start in enumerate(starts)] * 2
+    verdict = behaviour("1.3.1/mean-reward").judge(args, eval_result(pushed_left, 10.5), None, [])
+    assert not verdict.passed and "not those of CartPoleLinearPolicy(params)" in verdict.actual
+    stopped = [own_loop(params, start, 10 + k, seed=3 + k, finished=False) for k, start in enumerate(starts)] * 2
+    verdict = behaviour("1.3.1/mean-reward").judge(args, eval_result(stopped, 10.5), None, [])
+    assert not verdict.passed and "stopped before it ended" in verdict.actual
+
+
+def test_repeatable_means_the_same_start_states_and_the_same_number():
+    params, args = np.zeros(4), {"params": np.zeros(4), "num_rollouts": 2, "seed": 3}
+    first = [own_loop(params, np.array([0.01, 0.0, 0.0, k]), 9) for k in (0.01, 0.02)]
+    continued = [own_loop(params, np.array([0.01, 0.0, 0.0, k]), 9) for k in (0.03, 0.04)]
+    assert behaviour("1.3.1/repeatable").judge(args, eval_result(first + first[::-1], 9.0), None, []).passed
+    verdict = behaviour("1.3.1/repeatable").judge(args, eval_result(first + continued, 9.0), None, [])
+    assert not verdict.passed and "started from other states" in verdict.actual
+    assert not behaviour("1.3.1/repeatable").judge(args, eval_result(first + first, 9.0, 9.5), None, []).passed
+
+
+def test_a_reset_that_no_step_follows_is_no_episode():
+    envs = Environments()
+    env = envs.get(envs.make()[0])
+    records = Records()
+    records.episodes = [envs.reset(env, 7, np.zeros(4))]  # env.reset(seed=seed) to seed it, then reset() per episode
+    episode = envs.reset(env, None, np.full(4, 0.01))
+    envs.step(env, 1, [np.zeros(4), 1.0, True, False])
+    records.episodes.append(episode)
+    arrays = records.arrays()
+    assert arrays["episode_seeds"].tolist() == [-1] and arrays["episode_determined"].tolist() == [True]
+    assert arrays["step_episode"].tolist() == [0] and arrays["episode_rewards"].tolist() == [1.0]
+
+
+def test_property_points_lift_a_wrong_value_to_30_percent_at_most():
+    notes = []
+    passed = {"mean-reward": False, "different-starts": True, "repeatable": True}
+    assert judging._beside_a_right_value("1.3.1", 2.0, passed, notes) == 1.5 and "30%" in notes[0]
+    assert judging._beside_a_right_value("1.3.1", 1.0, passed | {"different-starts": False}, []) == 1.0
+    assert judging._beside_a_right_value("1.3.1", 5.0, passed | {"mean-reward": True}, []) == 5.0
 
 
 # --------------------------------------------------------------------------------------------
@@ -323,6 +429,8 @@ VERDICTS = {
                  "    column[i, 0] = (f(x + e) - f(x - e)) / (2 * h[i])\nreturn column", 0),
     "a sigmoid that breaks on a single number (iterates over z)": (
         "2.2.1", "values = np.array([1 / (1 + np.exp(-v)) for v in z])", 1.7),
+    "a sigmoid in float32 (the formula right, float32 precision)": (
+        "2.2.1", "values = (1 / (1 + np.exp(-np.clip(z, -80, 80).astype(np.float32)))).astype(np.float32)", 1.5),
 }
 
 
@@ -378,6 +486,56 @@ def assert_same_visible_verdicts(grade, shown, todos):
         previewed = next(entry for entry in shown["todos"] if entry["id"] == todo)["first_failure"]
         if graded is not None and not graded["hidden"]:  # the same words for the same visible failure
             assert previewed == graded, (todo, previewed, graded)
+
+
+def test_the_line_a_failing_check_prints_rebuilds_its_input_in_the_student_edition(student_edition):
+    """Each visible case's line of Python, run in the student edition (its own hwtools and hwlib),
+    gives the input the check gave the student's function."""
+    from hwtools.cases import visible_case
+    from hwtools.grade.probes import known_function, rebuild_line
+
+    edition, env = student_edition
+    lines = {case_id: rebuild_line(case_id, b.probe) for todo in checks.GRADED_TODOS
+             for case_id, b, _ in checks.case_set(todo).visible}
+    assert lines["1.3.3/converges/v0"] == "" and all(line for case_id, line in lines.items() if "1.3.3" not in case_id)
+    script = "import json, numpy as np\nout = {}\n"
+    for case_id, line in lines.items():
+        if line:
+            names = line.split("; ", 1)[1].split(" = ", 1)[0]
+            script += f"{line}\nout[{case_id!r}] = digest([{names}])\n"
+    script = DIGEST + script + "print(json.dumps(out))\n"
+    run = subprocess.run([sys.executable, "-c", script], cwd=edition, env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    shown = json.loads(run.stdout)
+    namespace = {}
+    exec(DIGEST, namespace)
+    for case_id, line in lines.items():
+        if line:
+            value, single = visible_case(case_id), "," not in line.split("; ", 1)[1].split(" = ", 1)[0]
+            assert shown[case_id] == json.loads(json.dumps(namespace["digest"]([value] if single else list(value)))), case_id
+    # and what the grader gave: the finite-difference case itself
+    case_id, _, args = checks.case_set("1.2.1").visible[0]
+    f, x, h = visible_case(case_id)
+    assert np.array_equal(x, args["x"]) and np.array_equal(h, args["h"]) and f(x) == known_function(args["f"])(x)
+
+
+DIGEST = """
+def digest(values):
+    import numpy as np
+    out = []
+    for value in values:
+        if callable(value):
+            out.append("a function")
+        elif isinstance(value, dict):
+            out.append({key: np.asarray(item).tolist() for key, item in sorted(value.items())})
+        elif hasattr(value, "classifiers"):
+            out.append([np.asarray(c.weights).tolist() for c in value.classifiers])
+        elif hasattr(value, "weights"):
+            out.append(np.asarray(value.weights).tolist())
+        else:
+            out.append(np.asarray(value).tolist())
+    return out
+"""
 
 
 @pytest.mark.parametrize("path", natural_solutions(), ids=lambda path: path.stem)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, served, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, mistakes, served, write_answer_key
 from hwtools.grade.feedback import render
 from cheats import leak_search
 from process_watch import live_processes
@@ -135,6 +135,15 @@ def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, 
     # 2.1.1 is graded by hand; the check shown for its grader must not blame the derivation for another TODO's mistake
     derivation = next(entry for entry in result["todos"] if entry["id"] == "2.1.1")
     assert todo == "2.1.1" or all(check["passed"] for check in derivation["checks"])
+    # the feedback names the mistake, in the file's own words, first in the first visible failure
+    diagnosis = mistakes.read_wrong_solution(path).diagnosis
+    assert (entry.get("mistake") or {}).get("diagnosis") == diagnosis, (path.name, entry.get("mistake"))
+    assert entry["mistake"]["id"] in {w.id for w in mistakes.read_wrong_solutions(WRONG) if w.diagnosis == diagnosis}
+    named = next(check["visible_failure"] for check in entry["checks"] if check["failed_on"] == "visible")
+    assert list(named)[0] == "mistake" and named["mistake"] == diagnosis
+    if todo != "1.3.3":  # and the one line of Python that rebuilds the visible input (1.3.3's is a setting)
+        assert named["reproduce"].startswith("from hwtools.cases import visible_case; ") and "\n" not in named["reproduce"]
+    assert all(other.get("mistake") is None for other in result["todos"] if other["id"] != todo)
 
 
 # Mistakes the issue names, with the points they keep: the credit follows what is right.
@@ -172,6 +181,30 @@ def test_a_mistake_keeps_the_points_of_what_is_right_and_costs_nothing_elsewhere
     assert points(result) == full_points() | {todo: kept}, render(result)
 
 
+def test_the_class_sees_its_mistakes_beside_the_gradebook(grader, layout, tmp_path):
+    """A class of three: one right, two with a forward difference in 1.2.1. Beside the gradebook:
+    each check's pass rate and each named mistake's count, as a table and a bar chart."""
+    from hwtools.grade import classroom
+
+    forward = mistakes.read_wrong_solution(WRONG / "forward_difference.txt")
+    for student, bodies in (("ada", {}), ("bob", {"1.2.1": list(forward.bodies)}), ("cy", {"1.2.1": list(forward.bodies)})):
+        blocks.write_submission(layout, tmp_path / "class" / student, bodies, others="reference")
+    report = classroom.grade_class(tmp_path / "class", tmp_path / "out" / "grades.csv", tmp_path / "out" / "feedback",
+                                   grader=grader, jobs=2)
+    assert len(report.students) == 3
+    import csv
+
+    with open(tmp_path / "out" / "grades-checks.csv", newline="", encoding="utf-8") as handle:
+        rows = {(row["kind"], row["id"]): row for row in csv.DictReader(handle)}
+    equation3 = rows["check", "1.2.1/equation-3"]
+    assert (equation3["students"], equation3["count"], equation3["share"]) == ("3", "1", "0.3333")
+    assert rows["check", "2.2.1/values"]["count"] == "3"
+    named = rows["mistake", "forward_difference"]
+    assert (named["todo"], named["count"], named["what"]) == ("1.2.1", "2", forward.diagnosis)
+    assert [key for key in rows if key[0] == "mistake"] == [("mistake", "forward_difference")]
+    assert (tmp_path / "out" / "grades-checks.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 # --------------------------------------------------------------------------------------------
 # Correct solutions written another way: every point
 # --------------------------------------------------------------------------------------------
@@ -194,6 +227,7 @@ def test_natural_solution_earns_every_point(grader, layout, tmp_path, path):
     assert points(result) == full_points(), render(result)
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
     assert all(check["passed"] for check in entry["checks"]), render(result)
+    assert not any(other.get("mistake") for other in result["todos"])  # no correct solution is named a mistake
 
 
 # A correct solution of each TODO that calls another TODO's function (each one it could use): the
@@ -514,7 +548,9 @@ def test_a_block_that_does_not_parse_costs_only_its_todo(grader, layout, tmp_pat
 
 def test_answer_key_grades_the_visible_checks_of_a_student_edition(answer_key, layout, tmp_path):
     key_file = tmp_path / "key.json"
-    key_file.write_text(json.dumps({"version": 1, "visible_cases": "stale", "expected": {}}))
+    from hwtools.grade.answer_key import ANSWER_KEY_VERSION
+
+    key_file.write_text(json.dumps({"version": ANSWER_KEY_VERSION, "visible_cases": "stale", "expected": {}}))
     with pytest.raises(Exception, match="other visible checks"):
         Grader(None, answer_key=key_file)
     good = tmp_path / "good.json"

@@ -209,8 +209,8 @@ EVAL_CASE = [("1.3.1/mean-reward/v0", "eval_params", {"params": np.zeros(4), "nu
 
 
 def test_run_policy_is_played_on_the_trusted_side_and_recorded_there():
-    script, replies = calling(("run_policy", {"params": np.full(4, 0.5), "seed": 7}, {}),
-                              ("run_policy", {"params": np.full(4, 0.5), "seed": None}, {}))
+    script, replies = calling(("run_policy", {"params": np.full(4, 0.5), "seed": 7, "env": None}, {}),
+                              ("run_policy", {"params": np.full(4, 0.5), "seed": None, "env": None}, {}))
     pool = FakePool()
     outcome, results = broker.run_cases(FakeWorker(script), "1.3.1", EVAL_CASE, [], pool)
     records = results[EVAL_CASE[0][0]]["records"]

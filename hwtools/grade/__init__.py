@@ -30,13 +30,16 @@ Modules: ``blocks`` (finding the TODO code, the kits), ``sandbox`` (launching a 
 ``bwrap_sandbox``: bubblewrap; ``user_sandbox`` and ``confine``: the fallback without namespaces, a
 user of its own per run), ``worker`` (the entry point of every sandboxed process) and ``runtime``
 (its loop, as a student's worker or as the reference server), ``probes`` (what a check calls in the
-kit), ``served`` (which other TODOs' functions a run may call), ``channel`` (the message format,
-read strictly), ``broker`` (the grader's side of one run: numbering, schemas, records),
+kit), ``served`` (which other TODOs' functions a run may call; ``served_env``: ``gym.make``'s
+CartPole, answered by the grader), ``channel`` (the message format, read strictly), ``broker`` (the
+grader's side of one run: numbering, schemas; ``episodes``: its records of every episode),
 ``reference`` (the reference servers), ``checks`` (what is checked: the table and the cases;
 ``cartpole_checks`` and ``logreg_checks``: each problem's inputs and judges; ``verdicts``: how an
-answer is judged and shown), ``judging`` (points and feedback), ``suspects`` (what a block reaches
-for, named in the feedback), ``grader`` (the trusted side), ``answer_key`` (the student edition's
-key), ``feedback`` (the text report). A class: ``submissions`` (reading a submission without trusting
+answer is judged and shown), ``judging`` (points and feedback), ``mistakes`` (the known mistake a
+failing answer matches), ``blame`` (the TODO at fault, in the preview), ``suspects`` (what a block
+reaches for, named in the feedback), ``grader`` (the trusted side), ``answer_key`` (the student
+edition's key), ``feedback`` (the text report); ``hwtools.cases`` rebuilds a visible input in a
+student's kernel. A class: ``submissions`` (reading a submission without trusting
 it), ``classroom`` (running a class), ``gradebook``, ``class_feedback`` (Markdown), ``progress``,
 ``safe_text``; Gradescope: ``gradescope``. This package's trusted side imports nothing from
 ``hwlib`` and nothing heavier than numpy.

@@ -1,8 +1,10 @@
-"""The student edition's answer key: the reference's values for the VISIBLE inputs of the exact checks.
+"""The student edition's answer key: the reference's values for the VISIBLE inputs of the exact checks,
+and the known mistakes' signatures on those inputs with their one-line diagnoses.
 
 The release tool writes it (``grader.write_answer_key``) into the student edition, where
-``python -m hwtools.grade`` judges a student's own kit against it (the preview): it holds nothing
-about hidden inputs and no code. JSON; arrays as {dtype, shape, data}.
+``python -m hwtools.grade`` judges a student's own kit against it (the preview) and names the
+known mistake a failing answer matches (``mistakes.py``): it holds nothing about hidden inputs and
+no code. JSON; arrays as {dtype, shape, data}.
 """
 
 from __future__ import annotations
@@ -13,10 +15,11 @@ from pathlib import Path
 
 import numpy as np
 
+from hwtools.grade import mistakes
 from hwtools.grade.channel import fingerprint
 
 ANSWER_KEY = Path(__file__).resolve().with_name("answer_key.json")
-ANSWER_KEY_VERSION = 1
+ANSWER_KEY_VERSION = 2
 
 
 class AnswerKeyError(Exception):
@@ -41,11 +44,13 @@ def visible_digest(cases):
     return digest.hexdigest()
 
 
-def write(expected, cases, out_path):
-    """Write the key: ``expected`` {case id: {name: array}} of visible exact cases."""
+def write(expected, cases, out_path, known=()):
+    """Write the key: ``expected`` {case id: {name: array}} of visible exact cases, ``known`` the
+    known mistakes' table (``mistakes.py``: signatures on the visible inputs, diagnoses)."""
     key = {"version": ANSWER_KEY_VERSION, "visible_cases": visible_digest(cases),
            "expected": {case_id: {name: _encode_array(value) for name, value in values.items()}
-                        for case_id, values in expected.items()}}
+                        for case_id, values in expected.items()},
+           "mistakes": mistakes.encode(list(known), _encode_array)}
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     out_path.write_text(json.dumps(key, sort_keys=True, separators=(",", ":")) + "\n", encoding="utf-8")
@@ -58,6 +63,7 @@ def read(path):
         raise AnswerKeyError(f"{path}: answer key version {data.get('version')}, this grader reads {ANSWER_KEY_VERSION}")
     data["expected"] = {case_id: {name: _decode_array(value) for name, value in values.items()}
                         for case_id, values in data["expected"].items()}
+    data["mistakes"] = mistakes.decode(data.get("mistakes", []), _decode_array)
     return data
 
 

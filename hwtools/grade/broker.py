@@ -21,10 +21,12 @@ visible ones first, then, only once each of those is answered, the hidden ones. 
   checks the call (``served.check_call``), has the reference server answer it, and calls back
   the functions the call passed, bounded in number. Every CartPole episode is played on the
   trusted side: ``run_policy`` by the reference server, with the grader's own seed where the
-  call gave none; in ``train_known`` cases ``eval_params`` is the known objective, computed here.
-  The grader records each episode (parameters, seed, seeded or not, reward) and each
-  evaluation (parameters, rollouts, seed, value) per case (``result["records"]``); the 1.3.x
-  judges read only these records.
+  call gave none (or in the call's ``gym.make`` environment), and every ``reset`` and ``step``
+  of a ``gym.make("CartPole-v1")`` environment the code plays itself (``served_env.py``); in
+  ``train_known`` cases ``eval_params`` is the known objective, computed here. The grader
+  records each episode, whatever door it came through (``episodes.py``: parameters or the
+  actions taken, seed, start state, reward), and each evaluation (parameters, rollouts, seed,
+  value) per case (``result["records"]``); the 1.3.x judges read only these records.
 """
 
 from __future__ import annotations
@@ -34,7 +36,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hwtools.grade import channel, probes, served
+from hwtools.grade import channel, probes, served, served_env
+from hwtools.grade.episodes import (  # noqa: F401 - Records: the records' type, given here too
+    EVALUATION, IN_ENV, MAX_STEPS, RUN_POLICY, Environments, Episode, Records, start_of,
+)
 from hwtools.grade.reference import ServerFailed, ServerTimeout
 
 MAX_CALLS = 50_000  # served calls per run
@@ -88,27 +93,6 @@ class Outcome:
     budget: bool = False  # stopped by the submission's time budget (not by this code's own limits)
 
 
-class Records:
-    """What the trusted side saw during one case."""
-
-    def __init__(self):
-        self.episodes, self.evaluations = [], []
-
-    def arrays(self):
-        ep, ev = self.episodes, self.evaluations
-        return {
-            "episode_params": np.array([e[0] for e in ep], dtype=np.float64).reshape(-1, 4),
-            "episode_seeds": np.array([e[1] for e in ep], dtype=np.int64),
-            "episode_seeded": np.array([e[2] for e in ep], dtype=bool),
-            "episode_rewards": np.array([e[3] for e in ep], dtype=np.float64),
-            "episode_direct": np.array([e[4] for e in ep], dtype=bool),  # run_policy itself, not inside eval_params
-            "evaluation_params": np.array([e[0] for e in ev], dtype=np.float64).reshape(-1, 4),
-            "evaluation_rollouts": np.array([e[1] for e in ev], dtype=np.int64),
-            "evaluation_seeds": np.array([e[2] for e in ev], dtype=np.int64),
-            "evaluation_values": np.array([e[3] for e in ev], dtype=np.float64),
-        }
-
-
 def _error(kind, message):
     return {"status": "error", "type": kind, "message": message}
 
@@ -152,6 +136,7 @@ class Conversation:
         self.marks, self.seeds, self.notes = [], set(), []
         self.case_probe, self.case_args, self.records = None, None, Records()
         self.limit = 0  # numbers a served call may carry in the current case (call_limit)
+        self.envs = Environments()  # gym.make's environments of this run (served_env.py)
 
     # ---- the worker ------------------------------------------------------------------
 
@@ -187,6 +172,8 @@ class Conversation:
 
     def _serve(self, call):
         name = call.get("fn")
+        if isinstance(name, str) and name in served_env.ENTRIES and "run_policy" in self.allowed:
+            return self._env_call(name, call.get("args"))
         entry = self.allowed.get(name) if isinstance(name, str) else None
         if entry is None:
             why = self.refused.get(name) if isinstance(name, str) else None
@@ -220,25 +207,77 @@ class Conversation:
         seed, seeded = args["seed"], args["seed"] is not None
         if self.episodes >= MAX_EPISODES:
             return _error("RuntimeError", f"the grader plays at most {MAX_EPISODES} episodes per check")
-        if not seeded:
+        env = None
+        if args["env"] is not None:  # an environment of gym.make: its next episode when no seed is given
+            env = self.envs.get(args["env"]) if _integer(args["env"]) else None
+            if env is None:
+                return _error("RuntimeError", "run_policy got an environment that is not open in this check")
+        elif not seeded:
             seed = secrets.randbelow(2**31 - 1)
             while seed in self.seeds:
                 seed = secrets.randbelow(2**31 - 1)
-        reply = self._server_call(served.SERVED_BY_NAME["run_policy"], {"params": args["params"], "seed": seed}, {})
-        reply.pop("episodes", None)
+        reply = self._server_call(served.SERVED_BY_NAME["run_policy"], {"params": args["params"], "seed": seed,
+                                                                          "env": args["env"]}, {})
+        starts = (reply.pop("episodes", None) or {}).get("starts", ())
         if reply["status"] == "ok":
             self.episodes += 1
-            self.seeds.add(int(seed))
-            self.records.episodes.append((np.asarray(args["params"], dtype=np.float64).reshape(4), int(seed), seeded,
-                                          float(reply["value"]), True))
+            if seed is not None:
+                self.seeds.add(int(seed))
+            determined = seeded if env is None else self.envs.played(env, seed)
+            self.records.episodes.append(Episode(
+                RUN_POLICY if env is None else IN_ENV, np.asarray(args["params"], dtype=np.float64).reshape(4),
+                -1 if seed is None else int(seed), seeded, determined, float(reply["value"]),
+                start_of(starts[0] if len(starts) else None), env=-1 if env is None else env.key))
+        return reply
+
+    def _env_call(self, name, args):
+        """A call of a ``gym.make`` environment (``served_env.py``): checked, answered by the server's
+        environment of the same key, and recorded (resets and steps of own loops)."""
+        problem = served_env.check(name, args)
+        if problem:
+            return _error("TypeError" if name != "env_reset" else "ValueError", problem)
+        if name == "env_make":
+            made = self.envs.make()
+            if made is None:
+                return _error("RuntimeError", "the grader makes at most 2000 environments per check")
+            key, evicted = made
+            if evicted is not None:
+                self._server_call(served_env.ENTRIES["env_close"], {"env": evicted}, {})
+            reply = self._server_call(served_env.ENTRIES["env_make"], {"env": key, "id": args["id"]}, {})
+            return dict(reply, value=key) if reply["status"] == "ok" else reply
+        env = self.envs.get(args["env"])
+        if name == "env_close":
+            if env is not None:
+                self.envs.close(env.key)
+                self._server_call(served_env.ENTRIES["env_close"], {"env": env.key}, {})
+            return {"status": "ok", "value": None, "state": {}}
+        if env is None:
+            return _error("RuntimeError", "this environment is not open in this check (closed, or made in another)")
+        if name == "env_reset" and self.episodes >= MAX_EPISODES:
+            return _error("RuntimeError", f"the grader plays at most {MAX_EPISODES} episodes per check")
+        if name == "env_step" and self.envs.steps >= MAX_STEPS:
+            return _error("RuntimeError", f"the grader plays at most {MAX_STEPS} steps per check")
+        reply = self._server_call(served_env.ENTRIES[name], args, {})
+        reply.pop("episodes", None)
+        if reply["status"] != "ok":
+            return reply
+        try:
+            if name == "env_reset":
+                self.episodes += 1
+                self.records.episodes.append(self.envs.reset(env, args["seed"], reply["value"]))
+            else:
+                self.envs.step(env, args["action"], reply["value"])
+        except (TypeError, ValueError):
+            return _error("RuntimeError", "the grader's environment could not answer this call")
         return reply
 
     def _evaluation(self, args, reply):
         episodes = reply.pop("episodes", None) or {}
-        for params, seed, reward in zip(episodes.get("params", ()), episodes.get("seeds", ()),
-                                        episodes.get("rewards", ())):
+        for params, seed, reward, start in zip(episodes.get("params", ()), episodes.get("seeds", ()),
+                                               episodes.get("rewards", ()), episodes.get("starts", ())):
             self.episodes += 1
-            self.records.episodes.append((np.asarray(params, dtype=np.float64), int(seed), True, float(reward), False))
+            self.records.episodes.append(Episode(EVALUATION, np.asarray(params, dtype=np.float64), int(seed),
+                                                 seed >= 0, seed >= 0, float(reward), start_of(start)))
         self.records.evaluations.append((np.asarray(args["params"], dtype=np.float64).reshape(4),
                                          int(args["num_rollouts"]), int(args["seed"]), float(reply["value"])))
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hwtools.grade.episodes import OWN_LOOP
 from hwtools.grade.probes import training_objective
 from hwtools.grade.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, exact, show
 
@@ -106,20 +107,27 @@ def _coordinate(args, index):
     return f"coordinate {i}: x[{i}] = {_number_text(args['x'][i])}, h[{i}] = {_number_text(h[i])}"
 
 
-# Central differences of the same f at the same points, computed in another order ((f+ - f-) / (2h)
-# or f+ / (2h) - f- / (2h), 0.5 * ... / h): rounding of values of f up to about 30 over steps
-# down to 0.01 differs by at most about 1e-12; a wrong formula (h for 2h, h/2 steps, a forward
-# difference) by 1e-3 or more.
-FD_TOLERANCE = Tolerance(1e-9, 1e-10, "rounding of the same differences in another order stays below 1e-12")
+# A tolerance that tells formulas apart, not precisions. The right formula computed or stored in
+# float32 (x, h or the answer as float32, even f's values rounded to float32) is off by at most
+# 1.1e-5 * (|expected| + 1) on these inputs (2.5e-8 when only the answer is stored as float32); a
+# wrong one (a forward difference, h for 2h, h/2 steps, another coordinate's step, every
+# coordinate moved) by 5e-3 * (|expected| + 1) or more. 1.2.1 has no precision point: equation
+# (3)'s own error (of order h^2, 1e-3 to 1e-1 here) is far above float32's rounding.
+FD_TOLERANCE = Tolerance(1e-4, 1e-4, "the right formula in float32 is off by at most 1.1e-5 * (|expected| + 1) here, "
+                                     "a wrong one by 5e-3 * (|expected| + 1) or more")
 
 
 # --------------------------------------------------------------------------------------------
 # 1.3.1 eval_params, judged by property on the grader's own records of the episodes it played
 # --------------------------------------------------------------------------------------------
-# The worker's run_policy forwards every episode to the trusted side, which plays it with the
-# reference (with a seed of the grader's choosing when the call gave none) and records it; the
-# probe calls eval_params twice with the same arguments. ``result["records"]`` holds, in order,
-# every episode (params, seed, seeded, reward): nothing the student's process says about them.
+# Every episode is played on the trusted side, whatever door it comes through (``episodes.py``):
+# run_policy (with a seed of the grader's choosing when the call gave none), run_policy in a
+# gym.make environment, or the code's own reset/step loop in one (every reset and step answered
+# and recorded). The probe calls eval_params twice with the same arguments. ``result["records"]``
+# holds, in order, every episode (its parameters or the actions taken, seed, start state,
+# reward): nothing the student's process says about them.
+
+PLAYED = "through run_policy or a gym.make('CartPole-v1') environment"
 
 
 def make_eval_case(rng, variant):
@@ -128,20 +136,38 @@ def make_eval_case(rng, variant):
 
 
 def _eval_episodes(args, result):
-    """(params, seeds, seeded, rewards) of the run_policy episodes of the case, or the Verdict's
-    actual text when there are not num_rollouts of them for each of the two calls."""
+    """The episodes of the case (those the code played itself, not inside a served eval_params) as
+    {name: array}, or the Verdict's actual text when there are not num_rollouts of them for each
+    of the two calls."""
     records, count = result["records"], args["num_rollouts"]
     direct = records["episode_direct"]
-    params, seeds = records["episode_params"][direct], records["episode_seeds"][direct]
-    seeded, rewards = records["episode_seeded"][direct], records["episode_rewards"][direct]
-    if len(seeds) != 2 * count:
-        return None, (f"{len(seeds)} episode(s) played with run_policy in two calls of eval_params with "
+    episodes = {name: records[f"episode_{name}"][direct] for name in
+                ("params", "seeds", "seeded", "determined", "rewards", "starts", "doors", "finished")}
+    rows = np.flatnonzero(direct)
+    episodes["actions_follow"] = np.array([_follows(records, row, args["params"]) for row in rows], dtype=bool)
+    if len(rows) != 2 * count:
+        return None, (f"{len(rows)} episode(s) played {PLAYED} in two calls of eval_params with "
                       f"num_rollouts={count}")
-    return (params, seeds, seeded, rewards), None
+    return episodes, None
+
+
+def _follows(records, row, params):
+    """True if episode ``row`` was played with CartPoleLinearPolicy(params): its parameters, or for
+    an own loop every action it took (equation (1) on the observation the grader had shown)."""
+    if records["episode_doors"][row] != OWN_LOOP:
+        return bool(np.array_equal(records["episode_params"][row], np.asarray(params, dtype=np.float64)))
+    mine = records["step_episode"] == row
+    scores = records["step_obs"][mine] @ np.asarray(params, dtype=np.float64)
+    wanted = (scores < 0).astype(np.int64)
+    return bool(np.all((records["step_actions"][mine] == wanted) | (np.abs(scores) < 1e-12)))
 
 
 def _shown_seeds(seeds, seeded):
     return "[" + ", ".join(str(int(s)) if flag else "unseeded" for s, flag in zip(seeds, seeded)) + "]"
+
+
+def _distinct(starts):
+    return len(np.unique(np.asarray(starts), axis=0)) == len(starts)
 
 
 def judge_eval_mean(args, result, expected, services):
@@ -152,39 +178,54 @@ def judge_eval_mean(args, result, expected, services):
     episodes, problem = _eval_episodes(args, result)
     if problem:
         return Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}")
-    params, seeds, seeded, rewards = (part[:count] for part in episodes)
-    if not np.array_equal(params, np.repeat(np.asarray(args["params"], dtype=np.float64)[None, :], count, axis=0)):
-        return Verdict(False, want, f"episodes played with other parameters: {show(params)}")
-    if len(set(seeds.tolist())) != count:
-        return Verdict(False, want, f"episodes from the same start state: seeds {_shown_seeds(seeds, seeded)}")
-    mean = float(np.mean(rewards))
+    first = {name: part[:count] for name, part in episodes.items()}
+    if not np.all(first["actions_follow"]):
+        wrong = int(np.flatnonzero(~first["actions_follow"])[0])
+        played = f"params {show(first['params'][wrong])}" if first["doors"][wrong] != OWN_LOOP else \
+            "actions that are not those of CartPoleLinearPolicy(params)"
+        return Verdict(False, want, f"episode {wrong + 1} was played with {played}")
+    if not np.all(first["finished"]):
+        wrong = int(np.flatnonzero(~first["finished"])[0])
+        return Verdict(False, want, f"episode {wrong + 1} stopped before it ended (no step answered terminated or "
+                                    "truncated)")
+    if not _distinct(first["starts"]):
+        return Verdict(False, want, f"episodes from the same start state: seeds {_shown_seeds(first['seeds'], first['seeded'])}")
+    mean = float(np.mean(first["rewards"]))
     value = result["values"]["value"]
-    return Verdict(_close(value, mean, 1e-9, 1e-9), f"{want}: {show(mean)} (rewards {show(rewards)})", show(value))
+    return Verdict(_close(value, mean, 1e-9, 1e-9), f"{want}: {show(mean)} (rewards {show(first['rewards'])})",
+                   show(value))
 
 
 def judge_eval_distinct(args, result, expected, services):
     count = args["num_rollouts"]
-    want = f"{count} episodes from {count} different seeds"
+    want = f"{count} episodes from {count} different start states"
     if result["status"] != "ok":
         return Verdict(False, want, result["error"])
     episodes, problem = _eval_episodes(args, result)
     if problem:
         return Verdict(False, want, problem)
-    seeds, seeded = episodes[1][:count], episodes[2][:count]
-    return Verdict(len(set(seeds.tolist())) == count, want, f"seeds {_shown_seeds(seeds, seeded)}")
+    seeds, seeded, starts = episodes["seeds"][:count], episodes["seeded"][:count], episodes["starts"][:count]
+    return Verdict(_distinct(starts), want, f"{len(np.unique(starts, axis=0))} different start state(s), seeds "
+                                            f"{_shown_seeds(seeds, seeded)}")
 
 
 def judge_eval_repeat(args, result, expected, services):
+    """The same call twice: the same start states (in any order) and the same number. The records
+    are split into the two calls' halves (a case with an odd number of episodes fails)."""
     if result["status"] != "ok":
         return Verdict(False, "the same number twice", result["error"])
     values, records = result["values"], result["records"]
-    flags = records["episode_seeded"][records["episode_direct"]]
-    seeded = len(flags) > 0 and bool(np.all(flags))
+    direct = records["episode_direct"]
+    starts, determined = records["episode_starts"][direct], records["episode_determined"][direct]
+    half = len(starts) // 2
+    same_starts = len(starts) > 0 and len(starts) % 2 == 0 and \
+        sorted(map(tuple, starts[:half])) == sorted(map(tuple, starts[half:]))
     same = _close(values["value_again"], values["value"], 0, 0)
     actual = f"{show(values['value'])}, then {show(values['value_again'])}"
-    if not seeded:
-        actual += " (run_policy was called without a seed: a random start state each time)"
-    return Verdict(seeded and same, "the same number twice", actual)
+    if not same_starts:
+        actual += " (the second call's episodes started from other states" + \
+            ("" if np.all(determined) else ": an episode without a seed starts from a random state") + ")"
+    return Verdict(same_starts and same, "the same number twice, from the same start states", actual)
 
 
 # --------------------------------------------------------------------------------------------
@@ -399,4 +440,15 @@ def judge_learning_rate(args, result, expected, services):
     at = converged_at(run["rewards"], top)
     actual = f"LEARNING_RATE = {show(value)}: rewards {show(run['rewards'], 25)}; " + \
         (f"converged at iteration {at}" if at is not None else "never converged")
-    return Verdict(at is not None and at <= deadline, want, actual)
+    passed = at is not None and at <= deadline
+    return Verdict(passed, want, actual, rule="" if passed else _learning_rate_rule(run["rewards"], top, at))
+
+
+def _learning_rate_rule(rewards, top, at):
+    """The known mistake a run that does not converge in time shows: "overshoots" (a reward falls
+    below half the best one before it: a step too far), "too_slow" (no such fall, and it ends
+    higher than it started: still climbing, or converged too late), or none."""
+    rewards = np.asarray(rewards, dtype=np.float64)
+    if np.any(rewards < 0.5 * np.maximum.accumulate(rewards)):
+        return "overshoots"
+    return "too_slow" if at is not None or rewards[-1] > rewards[0] else ""

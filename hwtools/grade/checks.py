@@ -47,6 +47,7 @@ from hwtools.grade.verdicts import (  # noqa: F401 - given here too: checks.show
 )
 
 PUBLIC_SEED = 20_240_131  # the visible inputs' seed: students may know it
+MOST_KEPT = 0.3  # of a TODO's points, what property points may lift a TODO whose value is wrong to
 
 # The other TODOs whose functions each TODO's check calls. No kit a student's code runs in holds
 # their code: the worker's copies are proxies that the reference server answers (``served.py``).
@@ -63,6 +64,9 @@ NEEDS = {
     "2.3.1": ("2.1.1", "2.2.1", "2.2.2", "2.2.3"),
 }
 SETTINGS_ONLY = {"1.3.3": ("hwlib/settings.py",)}  # TODOs whose kit holds only these files
+# The other TODOs whose code a check runs in the student edition's preview, which has no reference:
+# its server is the student's own kit, and 1.3.3's training run is the student's 1.1.1-1.3.2 (blame.py).
+PREVIEW_NEEDS = NEEDS | {"1.3.3": ("1.1.1", "1.2.1", "1.3.1", "1.3.2")}
 
 
 @dataclass(frozen=True)
@@ -80,6 +84,7 @@ class Behaviour:
     services: object = None  # services(args, result) -> [(probe, args)]: reference runs the judge needs
     exact: bool = False  # judged against the reference's values on the same input
     judged_on: str = ""  # the key of another behaviour of the TODO whose cases this one judges (it has none of its own)
+    beside: str = ""  # a property of the value behaviour with this key: its points lift a wrong value to MOST_KEPT at most
 
     @property
     def id(self):
@@ -117,13 +122,15 @@ BEHAVIOURS = (
               "finite_diff", make_fd_uniform, exact("gradient", FD_TOLERANCE, _coordinate), visible_count=3,
               exact=True),
     Behaviour("1.3.1", "mean-reward", 3, "eval_params returns the mean total reward of num_rollouts episodes of "
-              "CartPoleLinearPolicy(params), each from its own start state, played with run_policy (every episode "
-              "is played and recorded on the grader's side)", "eval_params", make_eval_case, judge_eval_mean,
-              visible_count=3),
+              "CartPoleLinearPolicy(params), each from its own start state, played with run_policy or in a "
+              "gym.make('CartPole-v1') environment (every reset and step is answered and recorded on the "
+              "grader's side)", "eval_params", make_eval_case, judge_eval_mean, visible_count=3),
     Behaviour("1.3.1", "different-starts", 1, "the episodes of one evaluation start from different start states "
-              "(no seed used twice)", "eval_params", make_eval_case, judge_eval_distinct, judged_on="mean-reward"),
-    Behaviour("1.3.1", "repeatable", 1, "the same call gives the same number again: every episode is seeded from "
-              "the seed argument", "eval_params", make_eval_case, judge_eval_repeat, judged_on="mean-reward"),
+              "(counts only up to 30% of the TODO while the mean is wrong)", "eval_params", make_eval_case,
+              judge_eval_distinct, judged_on="mean-reward", beside="mean-reward"),
+    Behaviour("1.3.1", "repeatable", 1, "the same call gives the same number again, from the same start states "
+              "(seeded from the seed argument; counts only up to 30% of the TODO while the mean is wrong)",
+              "eval_params", make_eval_case, judge_eval_repeat, judged_on="mean-reward", beside="mean-reward"),
     Behaviour("1.3.2", "equation-4", 3, "on a known smooth objective g standing in for eval_params (with a quartic "
               "term, so the step matters), every iteration evaluates g with num_rollouts_per_eval rollouts, takes "
               "the step of equation (4), theta <- theta + learning_rate * (central-difference gradient of g with "
@@ -135,8 +142,8 @@ BEHAVIOURS = (
               "differences of step fd_step from eval_params calls with num_rollouts_per_eval episodes, and "
               "rewards[t] is eval_params of the parameters after update t (on the grader's records of every "
               "evaluation)", "train_real", make_real_training, judge_real_rewards, visible_count=1),
-    Behaviour("1.3.3", "converges", 2, "with your LEARNING_RATE, the notebook's training run (the reference's "
-              "training code, settings.TRAINING_SEED, from zeros) reaches reward 500 within 7 iterations and "
+    Behaviour("1.3.3", "converges", 2, "with your LEARNING_RATE, the notebook's training run (settings.TRAINING_SEED, "
+              "from zeros; the note says whose training code it ran) reaches reward 500 within 7 iterations and "
               "stays there", "settings_value", make_learning_rate, judge_learning_rate, visible_count=1,
               services=_learning_rate_services),
     Behaviour("2.1.1", "gradient", 0, "log_likelihood_gradient equals the summed gradient of equation (7), also "

@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hwtools import markers
-from hwtools.grade import blocks
+from hwtools.grade import blocks, class_summary
 from hwtools.grade.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
 from hwtools.grade.gradebook import StudentResult, gradebook_text, status_of
@@ -286,6 +286,7 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     meter.close()
     results.sort(key=lambda item: item.student)
     _write_atomically(gradebook, gradebook_text(results))
+    class_summary.write(results, gradebook)  # beside it: each check's pass rate, each named mistake's count
     feedback.mkdir(parents=True, exist_ok=True)
     for student_result in results:
         try:

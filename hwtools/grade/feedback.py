@@ -28,7 +28,8 @@ def render(result, details=True):
     for entry in result["todos"]:
         auto = f"{_points(entry['auto_earned'])} / {_points(entry['auto_possible'])}" if entry["auto_possible"] else "-"
         manual = _points(entry["manual_possible"]) if entry["manual_possible"] else "-"
-        lines.append(f"{entry['id']:<7}{entry['title']:<{width}}{auto:>12}  {manual:>8}  {entry['status']}")
+        status = entry["status"] + (f" (depends on {', '.join(entry['blamed_on'])})" if entry.get("blamed_on") else "")
+        lines.append(f"{entry['id']:<7}{entry['title']:<{width}}{auto:>12}  {manual:>8}  {status}")
     total = result["total"]
     lines.append(f"{'total':<7}{'':<{width}}{_points(total['auto_earned']) + ' / ' + _points(total['auto_possible']):>12}"
                  f"  {_points(total['manual_possible']):>8}")
@@ -44,6 +45,8 @@ def render(result, details=True):
                              f"{_points(entry['auto_possible'])} automatic point(s)")
             else:
                 lines.append(f"{entry['id']} {entry['title']}: graded by hand; the check below is for the grader")
+            if entry.get("blame"):
+                lines.extend(_wrapped(entry["blame"], "  "))
             for check in entry["checks"]:
                 mark = "pass" if check["passed"] else "FAIL"
                 inputs = f"{check['visible_inputs']} visible" + (f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else "")
@@ -55,7 +58,7 @@ def render(result, details=True):
                 headline, fields = failure_words(failure)
                 lines.extend(_wrapped(headline, "  "))
                 for name, text in fields:
-                    lines.extend(_wrapped(f"{name + ':':<12}{text}", "    "))
+                    lines.extend(field_lines(name, text, "    ", 110))
             for note in entry["notes"]:
                 lines.extend(_wrapped(f"note: {note}", "  "))
             if entry["manual_possible"]:
@@ -63,13 +66,24 @@ def render(result, details=True):
     return "\n".join(lines) + "\n"
 
 
-FAILURE_FIELDS = ("input", "expected", "actual", "difference", "tolerance")
+FAILURE_FIELDS = ("mistake", "input", "reproduce", "expected", "actual", "difference", "tolerance")
+UNWRAPPED = ("reproduce",)  # one line of Python, to copy: never wrapped
+
+
+def field_lines(name, text, indent, width):
+    """The lines of one failure field ``name: text`` (wrapped at ``width``, but for ``UNWRAPPED``)."""
+    line = f"{indent}{name + ':':<12}{text}"
+    if name in UNWRAPPED:
+        return [line]
+    return textwrap.wrap(line, width=width, subsequent_indent=indent + " " * 4, break_long_words=True,
+                         break_on_hyphens=False) or [indent]
 
 
 def failure_words(failure):
     """(headline, [(name, text)]): the words of a TODO's first failing check, the same in every
     report (this text report: the student's preview and the instructor's grade; the class's
-    Markdown feedback and Gradescope). A visible input gives the input, the expected and actual
+    Markdown feedback and Gradescope). A visible input gives the known mistake the answers match
+    (if one does), the input and the line of Python that rebuilds it, the expected and actual
     value, where they first differ (index, both values with digits enough to tell them apart,
     the relative difference) and the tolerance; a hidden one only the check's description."""
     if failure["hidden"]:

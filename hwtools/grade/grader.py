@@ -30,7 +30,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from hwtools.grade import answer_key as keys
-from hwtools.grade import blocks, broker, checks, judging
+from hwtools.grade import blame, blocks, broker, checks, judging, mistakes
 from hwtools.grade.answer_key import ANSWER_KEY
 from hwtools.grade.channel import fingerprint
 from hwtools.grade.reference import ReferencePool, ServerFailed, runtime_files
@@ -126,7 +126,8 @@ class Grader:
             self.layout = blocks.load_layout(self.reference)
             self.reference_bodies = self.layout.reference_bodies()
             self.hidden = load_hidden_checks(self.reference)
-            self.key = None
+            self.wrong_solutions = mistakes.read_wrong_solutions(self.reference / mistakes.WRONG_SOLUTIONS)  # read now:
+            self.key = None  # the Gradescope bundle deletes instructor/ once the grader is made
         else:
             path = Path(answer_key) if answer_key is not None else ANSWER_KEY
             if not path.is_file():
@@ -134,6 +135,7 @@ class Grader:
                                    f"or put the answer key at {path}")
             self.key = read_answer_key(path)
             self.layout = self.reference_bodies = self.hidden = None
+            self.wrong_solutions = []
         self.cases = {todo: checks.case_set(todo, self.hidden) for todo in checks.GRADED_TODOS}
         if self.key is not None:
             try:
@@ -227,13 +229,13 @@ class Grader:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:
                 entries = dict(zip(graded, executor.map(
                     lambda todo: self._todo_entry(todo, read, layout, pool, budget), graded)))
+            for todo in selected:
+                result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
+                                                                               self._scrub, self._limits, []))
+            self._blame(result["todos"], read, layout, pool, budget)
         finally:
             if pool is not None and pool is not self.pool:
                 pool.close()
-        limits = (self.sandbox.time_limit, self.sandbox.memory_limit / 2**20)
-        for todo in selected:
-            result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
-                                                                           self._scrub, limits, []))
         entries = result["todos"]
         result["total"] = {
             "auto_earned": round(sum(entry["auto_earned"] for entry in entries), 2),
@@ -267,6 +269,20 @@ class Grader:
         return None
 
     # ---- running ------------------------------------------------------------------------
+
+    @property
+    def _limits(self):
+        return self.sandbox.time_limit, self.sandbox.memory_limit / 2**20
+
+    def _blame(self, entries, read, layout, pool, budget):
+        """In the preview, name the TODO at fault for a failing check (``blame.py``): the TODOs it
+        calls are judged on their visible checks too (run here if they were not selected)."""
+        preview = self.reference is None
+        judged = {entry["id"]: entry for entry in entries}
+        extra = [todo for todo in checks.GRADED_TODOS if preview and todo in blame.needed(entries) and todo not in judged]
+        judged.update({todo: self._todo_entry(todo, read, layout, pool, budget) for todo in extra})
+        stubs = {todo for todo, bodies in read.bodies.items() if all(blame.untouched(body) for body in bodies)}
+        blame.apply(entries, judged, stubs, preview)
 
     def _parsed_bodies(self, todo, read, layout):
         """The student's blocks for ``todo``, or a string saying why they cannot be used (a block that
@@ -311,7 +327,6 @@ class Grader:
         """The judged result entry of ``todo``: its run (memoized per grader as the entry it gave, so
         that a kit already run is not run again and no run's answers are kept once judged), the
         reference's values, the services its judges need. Any failure becomes the entry's verdict."""
-        limits = (self.sandbox.time_limit, self.sandbox.memory_limit / 2**20)
         try:
             notes = judging.seen(todo, read, layout)
         except Exception:  # noqa: BLE001 - what the code reaches for is a note; a block too deep to parse has none
@@ -330,7 +345,7 @@ class Grader:
             raise
         except Exception as error:  # noqa: BLE001 - one TODO's failure is its own verdict, the others are graded
             entry = judging.judge_todo(todo, {"student": _failure("grade", error), "reference": None}, {},
-                                       self.cases[todo], self._expected, self._scrub, limits, notes)
+                                       self.cases[todo], self._expected, self._scrub, self._limits, notes)
             entry["grader_error"] = f"{type(error).__name__}: {error}"[:300]
             return entry
 
@@ -347,8 +362,8 @@ class Grader:
 
     def _judge(self, todo, run, pool, notes):
         services = self._services(self._service_requests(todo, run), pool)
-        limits = (self.sandbox.time_limit, self.sandbox.memory_limit / 2**20)
-        return judging.judge_todo(todo, run, services, self.cases[todo], self._expected, self._scrub, limits, notes)
+        return judging.judge_todo(todo, run, services, self.cases[todo], self._expected, self._scrub, self._limits, notes,
+                                  self.known_mistakes)
 
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
         with tempfile.TemporaryDirectory(prefix="hwgrade-kit-") as scratch:
@@ -403,18 +418,52 @@ class Grader:
             raise entry["error"]
         return entry["value"]
 
+    # ---- known mistakes: what each wrong solution gives on the visible inputs (mistakes.py) ----
+
+    def known_mistakes(self, todo):
+        """The known mistakes' table (``mistakes.py``): from the answer key, or, with a reference,
+        each of its wrong solutions of ``todo`` run on the visible inputs like a student's code
+        (memoized per grader: a class pays for it once)."""
+        if self.key is not None:
+            return self.key.get("mistakes", [])
+        if self.reference is None:
+            return []
+        return self._memoized(("mistakes", todo), lambda: self._mistake_table(todo))
+
+    def _mistake_table(self, todo):
+        wrong = [w for w in self.wrong_solutions if w.todo == todo]
+        visible = checks.CaseSet(todo, visible=self.cases[todo].visible)
+
+        def signature(solution):
+            with tempfile.TemporaryDirectory(prefix="hwgrade-mistake-") as scratch:
+                blocks.write_submission(self.layout, scratch, {todo: list(solution.bodies)}, others="stub")
+                read = blocks.read_submission(Path(scratch), self.layout)
+            files = self._composite(todo, read, self.layout)
+            if isinstance(files, str):
+                return None
+            student = self._memoized(("visible", blocks.files_digest(files), todo),
+                                     lambda: self._run_now(todo, files, _phase(visible.visible), [], self.pool))
+            run = {"student": student, "reference": self._reference_values(todo)}
+            services = self._services(self._service_requests(todo, run, visible), self.pool)
+            entry = judging.judge_todo(todo, run, services, visible, self._expected, self._scrub, self._limits, [])
+            return mistakes.table_entry(solution, mistakes.signature(visible.visible, student[1], entry))
+
+        with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+            return [known for known in executor.map(signature, wrong) if known is not None]
+
     # ---- services: the reference re-scores what a student's run produced ------------------
 
-    def _service_requests(self, todo, run):
+    def _service_requests(self, todo, run, cases=None):
         student = run["student"]
         if isinstance(student, str):
             return []
         outcome, results = student
+        cases = cases or self.cases[todo]
         needed = []
         for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
             if behaviour.services is None:
                 continue
-            for case_id, case_behaviour, args in self.cases[todo].visible + self.cases[todo].hidden:
+            for case_id, case_behaviour, args in cases.visible + cases.hidden:
                 if case_behaviour is checks.cases_of(behaviour):
                     needed.extend(behaviour.services(args, results.get(case_id) or broker.missing(outcome)))
         return needed
@@ -469,4 +518,5 @@ def write_answer_key(reference_kit, out_path, python=None, isolation="auto"):
                     if result["status"] != "ok":
                         raise GradingError(f"the reference fails visible check {case_id}: {result['error']}")
                     expected[case_id] = result["values"]
-        return keys.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path)
+        known = [entry for todo in checks.GRADED_TODOS for entry in grader.known_mistakes(todo)]
+        return keys.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path, known)

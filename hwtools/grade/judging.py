@@ -1,17 +1,20 @@
 """Points and feedback for one TODO: each behaviour's verdicts on its cases, in the grader's own words.
 
 ``judge_todo`` turns what a run answered (``broker.run_cases``) into the TODO's entry of the
-result dict: points per behaviour (every input, visible and hidden, must pass), the first failing
-visible check with its input, expected and actual value, and notes. What a student may read is
-built from the grader's words and the student's own values on visible inputs only; a hidden
-input's failure shows only the check's description. Text that holds a line of the reference
-solution is replaced (``Scrubber``).
+result dict: points per behaviour (every input, visible and hidden, must pass; property points
+only up to 30% beside a wrong value), the first failing visible check with the known mistake the
+answers match (``mistakes.py``), its input and the line that rebuilds it
+(``probes.rebuild_line``), expected and actual value, and notes. What a student may read is built
+from the grader's words and the student's own values on visible inputs only; a hidden input's
+failure shows only the check's description. Text that holds a line of the reference solution is
+replaced (``Scrubber``).
 """
 
 from __future__ import annotations
 
-from hwtools.grade import broker, checks, suspects
+from hwtools.grade import broker, checks, mistakes, suspects
 from hwtools.grade.channel import fingerprint, text
+from hwtools.grade.probes import rebuild_line
 from hwtools.todos import TODO_BY_ID
 
 _STATUS = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed"}
@@ -41,12 +44,13 @@ class Scrubber:
         return text
 
 
-def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_notes):
+def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_notes, known=None):
     """The result entry of ``todo``. ``run``: None (no checks), or {"student": (Outcome, results) or
     a reason string, "reference": {case id: values} or None}; ``services``: {service_key: result};
     ``cases``: its CaseSet; ``expected_of(case_id, behaviour, reference)``: the values an exact
     check compares with; ``limits``: (time limit s, memory limit MiB); ``seen_notes``: notes on
-    the code itself."""
+    the code itself; ``known(todo)``: the known mistakes' table (``mistakes.py``), asked only when
+    a visible check fails, whose matching mistake the first visible failure names."""
     info = TODO_BY_ID[todo]
     entry = {"id": todo, "title": info.title, "auto_earned": 0.0, "auto_possible": info.auto,
              "manual_possible": info.manual, "manual": info.manual_what, "code": info.code,
@@ -68,7 +72,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
                                   f"{limits[0]:.0f} s, memory limit {limits[1]:.0f} MiB")
         entry["notes"].extend(outcome.notes)
     reference = run["reference"] or {}
-    earned, warnings = 0.0, []
+    earned, warnings, passed_by_key = 0.0, [], {}
     for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
         verdicts, source = [], checks.cases_of(behaviour)
         for visible, phase in ((True, cases.visible), (False, cases.hidden)):
@@ -87,32 +91,73 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
                     verdict = behaviour.judge(args, result, expected, answers)
                 except Exception as error:  # noqa: BLE001 - malformed values from the worker
                     verdict = checks.Verdict(False, "", text(f"unexpected values ({type(error).__name__}: {error})"))
-                verdicts.append((visible, args, verdict))
-        passed = bool(verdicts) and all(verdict.passed for _, _, verdict in verdicts)
-        failed_on = None if passed else ("visible" if any(v and not d.passed for v, _, d in verdicts) else "hidden")
+                verdicts.append((visible, case_id, args, verdict))
+        passed = bool(verdicts) and all(verdict.passed for _, _, _, verdict in verdicts)
+        failed_on = None if passed else ("visible" if any(v and not d.passed for v, _, _, d in verdicts) else "hidden")
         earned += behaviour.points if passed else 0.0
+        passed_by_key[behaviour.key] = passed
         # The first visible input this check fails on, shown in full (the notebook's check cells show it per check).
-        first = next(((args, verdict) for v, args, verdict in verdicts if v and not verdict.passed), None)
-        visible_failure = None if first is None else {
-            "input": scrub(checks.show(first[0])), "expected": scrub(first[1].expected), "actual": scrub(first[1].actual)}
-        if visible_failure is not None:  # where they differ, and the tolerance
-            visible_failure.update({name: scrub(getattr(first[1], name))
-                                    for name in ("difference", "tolerance") if getattr(first[1], name)})
-        entry["checks"].append({
-            "check": behaviour.description, "points": behaviour.points, "passed": passed, "failed_on": failed_on,
-            "visible_inputs": sum(v for v, _, _ in verdicts), "hidden_inputs": sum(not v for v, _, _ in verdicts),
-            "visible_failure": visible_failure})
+        first = next(((case_id, args, verdict) for v, case_id, args, verdict in verdicts if v and not verdict.passed), None)
+        visible_failure = None if first is None else _visible_failure(behaviour, *first, scrub)
+        check = {"id": behaviour.id, "check": behaviour.description, "points": behaviour.points, "passed": passed,
+                 "failed_on": failed_on, "visible_inputs": sum(v for v, _, _, _ in verdicts),
+                 "hidden_inputs": sum(not v for v, _, _, _ in verdicts), "visible_failure": visible_failure}
+        if first is not None and first[2].rule:
+            check["rule"] = first[2].rule
+        entry["checks"].append(check)
         if entry["first_failure"] is None and not passed:
             if visible_failure is not None:
                 entry["first_failure"] = {"check": behaviour.description, "hidden": False, **visible_failure}
             else:
                 entry["first_failure"] = {"check": behaviour.description, "hidden": True,
                                           "input": "a hidden input (not shown)"}
-    entry["auto_earned"] = round(min(earned, info.auto), 2)
+    entry["auto_earned"] = round(min(_beside_a_right_value(todo, earned, passed_by_key, entry["notes"]), info.auto), 2)
     entry["notes"].extend(seen_notes)
     for warning in dict.fromkeys(warnings):
         entry["notes"].append(f"warning (not a failure): {scrub(warning)}")
+    if known is not None and any(check["failed_on"] == "visible" for check in entry["checks"]):
+        mine = mistakes.signature(cases.visible, results, entry)
+        if not mistakes.untouched(mine):  # a stub matches no mistake: the table is not even made
+            name_mistake(entry, mistakes.name(todo, mine, known(todo)), scrub)
     return entry
+
+
+def _visible_failure(behaviour, case_id, args, verdict, scrub):
+    """What a failing visible input shows: the input, the line that rebuilds it in the student's
+    kernel, expected and actual, where they differ and the tolerance (``feedback.FAILURE_FIELDS``)."""
+    failure = {"input": scrub(checks.show(args)), "reproduce": rebuild_line(case_id, behaviour.probe),
+               "expected": scrub(verdict.expected), "actual": scrub(verdict.actual)}
+    failure.update({name: scrub(getattr(verdict, name)) for name in ("difference", "tolerance") if getattr(verdict, name)})
+    return {name: value for name, value in failure.items() if value or name in ("expected", "actual", "input")}
+
+
+def name_mistake(entry, named, scrub=str):
+    """Put the known mistake ``named`` ({"id", "diagnosis"} or None) in ``entry``: its id, and its
+    one line first in the first visible failure (the TODO's and that check's)."""
+    if named is None:
+        return
+    diagnosis = scrub(named["diagnosis"])
+    entry["mistake"] = {"id": named["id"], "diagnosis": diagnosis}
+    check = next(check for check in entry["checks"] if check["failed_on"] == "visible")
+    check["visible_failure"] = {"mistake": diagnosis, **check["visible_failure"]}
+    first = entry["first_failure"]
+    if first is not None and not first["hidden"] and first["check"] == check["check"]:
+        entry["first_failure"] = {"check": first["check"], "hidden": False, "mistake": diagnosis,
+                                  **{key: value for key, value in first.items() if key not in ("check", "hidden")}}
+
+
+def _beside_a_right_value(todo, earned, passed, notes):
+    """``earned`` with property points (``Behaviour.beside``) counted only up to ``checks.MOST_KEPT``
+    of the TODO where the value they stand beside is wrong: repeatable episodes do not make a
+    wrong mean partly right."""
+    lifted = [b for b in checks.BEHAVIOURS_BY_TODO[todo] if b.beside and passed[b.key] and not passed[b.beside]]
+    if not lifted:
+        return earned
+    capped = max(earned - sum(b.points for b in lifted), min(earned, checks.MOST_KEPT * TODO_BY_ID[todo].auto))
+    if capped < earned:
+        notes.append(f"the points of its checks of properties ({', '.join(b.key for b in lifted)}) count only up to "
+                     f"{checks.MOST_KEPT:.0%} of TODO {todo} while its value is wrong")
+    return capped
 
 
 def seen(todo, read, layout):

@@ -123,6 +123,36 @@ def _import(name):
 
 
 # --------------------------------------------------------------------------------------------
+# A visible case rebuilt in a student's kernel (``hwtools.cases.visible_case``): the line a failing check prints
+# --------------------------------------------------------------------------------------------
+
+# probe: (what the line unpacks, what to call then); None: nothing to rebuild (a setting)
+REBUILT = {
+    "policy_choices": ("params, obs", "CartPoleLinearPolicy(params[i])(obs[i]) for the row i it names"),
+    "finite_diff": ("f, x, h", "scalar_finite_diff(f, x, h)"),
+    "eval_params": ("params, num_rollouts, seed", "eval_params(params, num_rollouts, seed=seed), twice"),
+    "train_known": ("kwargs, g", "train_cartpole_policy(**kwargs) with g(p) as each eval_params(p, ...)"),
+    "train_real": ("kwargs", "train_cartpole_policy(**kwargs)"),
+    "settings_value": None,
+    "sigmoid": ("z", "sigmoid(z)"),
+    "predict_prob": ("model, X", "model.predict_prob(X)"),
+    "gradient_step": ("model, X, y, learning_rate, steps", "model.gradient_ascent_step(X, y, learning_rate), steps times"),
+    "one_vs_rest": ("model, X, y, learning_rate, n_iters", "model.fit(X, y, learning_rate, n_iters)"),
+    "ll_gradient": ("weights, X, y", "log_likelihood_gradient(weights, X, y)"),
+}
+
+
+
+def rebuild_line(case_id, probe):
+    """The one line of Python that rebuilds visible case ``case_id`` of ``probe``, or "" (a setting)."""
+    rebuilt = REBUILT.get(probe)
+    if rebuilt is None:
+        return ""
+    names, then = rebuilt
+    return f'from hwtools.cases import visible_case; {names} = visible_case("{case_id}")  # then {then}'
+
+
+# --------------------------------------------------------------------------------------------
 # Problem 1
 # --------------------------------------------------------------------------------------------
 
@@ -149,6 +179,11 @@ def _action_kind(value):
     return 3 if isinstance(value, np.ndarray) else 4
 
 
+def policy_inputs(args):
+    """(params, obs): row i of each is one call, CartPoleLinearPolicy(params[i])(obs[i])."""
+    return np.asarray(args["params"], dtype=np.float64), np.asarray(args["obs"], dtype=np.float64)
+
+
 @probe(actions=(_FLOAT, (1,)), accepted=("b", (1,)), kinds=(_INT, (1,)))
 def probe_policy_choices(args):
     """The policy's action on each (params, obs) row as a number (whatever numeric type it came
@@ -166,13 +201,23 @@ def probe_policy_choices(args):
             "kinds": np.array(kinds, dtype=np.int64)}
 
 
-@probe(gradient=(_FLOAT, (0, 1, 2)))
-def probe_finite_diff(args):
-    finite_diff = _import("hwlib.finite_diff")
+def fd_inputs(args):
+    """(f, x, h) of a finite-difference case, as scalar_finite_diff gets them."""
     f = known_function(args["f"])
     x = float(args["x"]) if args.get("x_scalar") else np.array(args["x"], dtype=np.float64)
     h = float(args["h"]) if args.get("h_scalar") else np.array(args["h"], dtype=np.float64)
-    return {"gradient": numbers(finite_diff.scalar_finite_diff(f, x, h), "scalar_finite_diff")}
+    return f, x, h
+
+
+@probe(gradient=(_FLOAT, (0, 1, 2)))
+def probe_finite_diff(args):
+    finite_diff = _import("hwlib.finite_diff")
+    return {"gradient": numbers(finite_diff.scalar_finite_diff(*fd_inputs(args)), "scalar_finite_diff")}
+
+
+def eval_inputs(args):
+    """(params, num_rollouts, seed) of an eval_params case."""
+    return np.array(args["params"], dtype=np.float64), int(args["num_rollouts"]), int(args["seed"])
 
 
 @probe(value=(_FLOAT, (0, 1)), value_again=(_FLOAT, (0, 1)))
@@ -180,23 +225,25 @@ def probe_eval_params(args):
     """Two calls of eval_params with the same arguments. The episodes they play are recorded by
     the grader (run_policy is answered on its side), never here."""
     policy_search = _import("hwlib.policy_search")
-    params = np.array(args["params"], dtype=np.float64)
-    first = numbers(policy_search.eval_params(params.copy(), int(args["num_rollouts"]), seed=int(args["seed"])),
-                    "eval_params")
-    again = numbers(policy_search.eval_params(params.copy(), int(args["num_rollouts"]), seed=int(args["seed"])),
-                    "eval_params")
+    params, num_rollouts, seed = eval_inputs(args)
+    first = numbers(policy_search.eval_params(params.copy(), num_rollouts, seed=seed), "eval_params")
+    again = numbers(policy_search.eval_params(params.copy(), num_rollouts, seed=seed), "eval_params")
     return {"value": first, "value_again": again}
 
 
 _TRAINING = {"rewards": (_FLOAT, (1,)), "params_history": (_FLOAT, (2,)), "final_params": (_FLOAT, (1,))}
 
 
+def train_inputs(args):
+    """The keyword arguments of train_cartpole_policy in a training case."""
+    return {"num_training_iterations": int(args["iterations"]), "num_rollouts_per_eval": int(args["rollouts"]),
+            "learning_rate": float(args["learning_rate"]), "fd_step": float(args["fd_step"]), "seed": int(args["seed"]),
+            "initial_params": np.array(args["initial_params"], dtype=np.float64)}
+
+
 def _train(args):
     policy_search = _import("hwlib.policy_search")
-    run = policy_search.train_cartpole_policy(
-        num_training_iterations=int(args["iterations"]), num_rollouts_per_eval=int(args["rollouts"]),
-        learning_rate=float(args["learning_rate"]), fd_step=float(args["fd_step"]), seed=int(args["seed"]),
-        initial_params=np.array(args["initial_params"], dtype=np.float64))
+    run = policy_search.train_cartpole_policy(**train_inputs(args))
     return {"rewards": numbers(getattr(run, "rewards", None), "train_cartpole_policy's rewards"),
             "params_history": numbers(getattr(run, "params_history", None), "train_cartpole_policy's params_history"),
             "final_params": numbers(getattr(getattr(run, "policy", None), "params", None), "the trained policy's params")}
@@ -232,52 +279,70 @@ def probe_settings_value(args):
 # --------------------------------------------------------------------------------------------
 
 
+def sigmoid_inputs(args):
+    return (np.array(args["z"], dtype=np.float64),)
+
+
 @probe(values=(_FLOAT, (0, 1, 2, 3)))
 def probe_sigmoid(args):
     logreg = _import("hwlib.logreg")
-    z = np.array(args["z"], dtype=np.float64)
+    (z,) = sigmoid_inputs(args)
     return {"values": numbers(logreg.sigmoid(z.copy()), "sigmoid")}
+
+
+def classifier_inputs(args, logreg):
+    """(model, X) of a predict_prob case, or (model, X, y, learning_rate, steps) of a step case: the
+    two-class classifier of ``logreg`` (the kit's module) with the case's weights."""
+    model = logreg.TwoClassLogisticRegressionClassifier(int(args["n_features"]))
+    model.weights = np.array(args["weights"], dtype=np.float64)
+    X = np.array(args["X"], dtype=np.float64)
+    if "y" not in args:
+        return model, X
+    return model, X, np.array(args["y"]), float(args["learning_rate"]), int(args["steps"])
 
 
 @probe(probabilities=(_FLOAT, (0, 1, 2)))
 def probe_predict_prob(args):
-    logreg = _import("hwlib.logreg")
-    classifier = logreg.TwoClassLogisticRegressionClassifier(int(args["n_features"]))
-    classifier.weights = np.array(args["weights"], dtype=np.float64)
-    return {"probabilities": numbers(classifier.predict_prob(np.array(args["X"], dtype=np.float64)), "predict_prob")}
+    model, X = classifier_inputs(args, _import("hwlib.logreg"))
+    return {"probabilities": numbers(model.predict_prob(X), "predict_prob")}
 
 
 @probe(weights=(_FLOAT, (1, 2, 3)))
 def probe_gradient_step(args):
-    logreg = _import("hwlib.logreg")
-    classifier = logreg.TwoClassLogisticRegressionClassifier(int(args["n_features"]))
-    classifier.weights = np.array(args["weights"], dtype=np.float64)
-    X, y = np.array(args["X"], dtype=np.float64), np.array(args["y"])
+    classifier, X, y, learning_rate, steps = classifier_inputs(args, _import("hwlib.logreg"))
     after = []
-    for _ in range(int(args["steps"])):
-        classifier.gradient_ascent_step(X.copy(), y.copy(), float(args["learning_rate"]))
+    for _ in range(steps):
+        classifier.gradient_ascent_step(X.copy(), y.copy(), learning_rate)
         after.append(numbers(classifier.weights, "self.weights after gradient_ascent_step").copy())
     return {"weights": np.array(after)}
 
 
-@probe(weights=(_FLOAT, (1, 2, 3)), accuracies=(_FLOAT, (0, 1)))
-def probe_one_vs_rest(args):
-    logreg = _import("hwlib.logreg")
+def one_vs_rest_inputs(args, logreg):
+    """(model, X, y, learning_rate, n_iters) of a one-vs-rest case: the multi-class classifier of
+    ``logreg`` with the weights its fit starts from."""
     model = logreg.MultiClassLogisticRegressionClassifier(int(args["n_features"]), int(args["n_classes"]))
     for c, start in enumerate(np.array(args.get("initial_weights", ()), dtype=np.float64)):  # where fit starts
         model.classifiers[c].weights = start.copy()
-    accuracies = model.fit(np.array(args["X"], dtype=np.float64), np.array(args["y"]),
-                           float(args["learning_rate"]), int(args["n_iters"]))
+    return (model, np.array(args["X"], dtype=np.float64), np.array(args["y"]), float(args["learning_rate"]),
+            int(args["n_iters"]))
+
+
+@probe(weights=(_FLOAT, (1, 2, 3)), accuracies=(_FLOAT, (0, 1)))
+def probe_one_vs_rest(args):
+    model, X, y, learning_rate, n_iters = one_vs_rest_inputs(args, _import("hwlib.logreg"))
+    accuracies = model.fit(X, y, learning_rate, n_iters)
     weights = np.array([numbers(c.weights, "classifiers[c].weights") for c in model.classifiers])
     return {"weights": weights, "accuracies": numbers(accuracies, "fit")}
+
+
+def ll_gradient_inputs(args):
+    return np.array(args["weights"], dtype=np.float64), np.array(args["X"], dtype=np.float64), np.array(args["y"])
 
 
 @probe(gradient=(_FLOAT, (0, 1, 2)))
 def probe_ll_gradient(args):
     logreg = _import("hwlib.logreg")
-    gradient = logreg.log_likelihood_gradient(np.array(args["weights"], dtype=np.float64),
-                                              np.array(args["X"], dtype=np.float64), np.array(args["y"]))
-    return {"gradient": numbers(gradient, "log_likelihood_gradient")}
+    return {"gradient": numbers(logreg.log_likelihood_gradient(*ll_gradient_inputs(args)), "log_likelihood_gradient")}
 
 
 # --------------------------------------------------------------------------------------------

@@ -44,7 +44,7 @@ LIFETIME = 3600.0  # seconds a server lives at most (its wall-clock and CPU limi
 SETUP_SECONDS = 120.0  # to start and import the kit
 IDLE_SECONDS = 10.0  # an unused server ends after this long
 KEEP = 4  # idle servers kept at most
-RUNTIME_MODULES = ("channel", "served", "probes", "runtime")
+RUNTIME_MODULES = ("channel", "served", "served_env", "probes", "runtime")
 
 
 class ServerFailed(Exception):

@@ -1,13 +1,15 @@
 """The sandboxed side of grading: one process's loop, as the student's worker or as the reference server.
 
 ``worker.py`` starts this module from the kit the process runs (the grader copies it there as
-``_hwgrade/runtime.py``, with ``channel``, ``served`` and ``probes``). The grader speaks first,
+``_hwgrade/runtime.py``, with ``channel``, ``served``, ``served_env`` and ``probes``). The grader speaks first,
 and every message it sends carries its number ``n``:
 
 * ``setup`` {todo, mode}: answered ``ready``. A *worker* (mode "worker") then replaces every
   function of ``served.plan(todo)`` by a proxy that forwards its calls, and every refused one by
-  a stub that says why; a *server* (mode "server", the reference kit only) records the episodes
-  its ``eval_params`` plays.
+  a stub that says why (and where ``run_policy`` is served, ``gym.make`` of CartPole gives an
+  environment the grader answers: ``served_env.py``); a *server* (mode "server", the reference
+  kit only) records the episodes its ``eval_params`` and ``run_policy`` play, with their start
+  states, and holds the environments of those ``gym.make`` calls.
 * ``case`` {id, probe, args}: the worker runs the probe and answers ``result`` {re: n, status,
   error, warnings, values}.
 * while a proxy waits for its ``reply`` {re: k} to its ``call`` {k, fn, args, state} (k: the
@@ -32,9 +34,9 @@ import warnings
 
 import numpy as np
 
-from . import channel, probes, served
+from . import channel, probes, served, served_env
 
-_IO = {"in": None, "out": None, "k": 0, "mode": None}
+_IO = {"in": None, "out": None, "k": 0, "mode": None, "env_class": None}
 MAIN_PID = os.getpid()
 _CALLBACKS = []  # the functions passed to pending proxy calls, by id
 _LAST_CALLBACK_ERROR = [None]
@@ -191,13 +193,15 @@ def _proxy(entry, original):
 
 
 def _episode(arguments):
-    """run_policy(policy, seed, env) as the grader plays it: the policy's parameters and the seed."""
+    """run_policy(policy, seed, env) as the grader plays it: the policy's parameters, the seed and
+    the key of the environment (None, or one of ``gym.make``'s served environments)."""
     cartpole = sys.modules["hwlib.cartpole"]
     policy = arguments.get("policy")
     if type(policy) is not cartpole.CartPoleLinearPolicy:
         raise TypeError(f"in grading, run_policy plays CartPoleLinearPolicy(params) on the grader's side; got a "
                         f"{type(policy).__name__}")
-    return {"params": policy.params, "seed": arguments.get("seed")}
+    env = served_env.env_key(arguments.get("env"), _IO["env_class"])
+    return {"params": policy.params, "seed": arguments.get("seed"), "env": env}
 
 
 def _refusing(why, original):
@@ -241,6 +245,8 @@ def _setup_worker(todo):
         _replace(entry, lambda original, entry=entry: _proxy(entry, original))
     for name, why in refused.items():
         _replace(served.SERVED_BY_NAME[name], lambda original, why=why: _refusing(why, original))
+    if "run_policy" in allowed:  # every episode of this run is played on the trusted side, gym.make's too
+        _IO["env_class"] = served_env.install(call)
 
 
 # --------------------------------------------------------------------------------------------
@@ -276,39 +282,64 @@ def _callback(cb):
 
 def _recorder(real):
     def run_policy(policy, seed=None, env=None):
-        reward = real(policy, seed=seed, env=env)
-        if _EPISODES:
-            _EPISODES[-1].append((np.array(policy.params, dtype=np.float64), -1 if seed is None else int(seed), reward))
+        if not _EPISODES:  # outside a served call (the notebook's training run): as the kit plays it
+            return real(policy, seed=seed, env=env)
+        recorder = served_env.StartRecorder(_ENVS[0].scratch() if env is None else env)
+        reward = real(policy, seed=seed, env=recorder)
+        _EPISODES[-1].append((np.array(policy.params, dtype=np.float64), -1 if seed is None else int(seed), reward,
+                              recorder.start))
         return reward
 
     return run_policy
+
+
+_ENVS = []  # server: the environments of served gym.make calls (served_env.Table)
 
 
 def _setup_server():
     probes._import("hwlib")
     policy_search = probes._import("hwlib.policy_search")
     policy_search.run_policy = _recorder(policy_search.run_policy)
+    from gymnasium.envs.registration import make  # noqa: PLC0415 - the kit's own dependency
+
+    _ENVS.append(served_env.Table(make))
+
+
+def _play_served_episode(module, args):
+    """run_policy as a served call: in the environment of ``args["env"]`` (its next episode when
+    the seed is None) or else in the scratch environment, always seeded there; recorded with its
+    start state."""
+    table = _ENVS[0]
+    recorder = served_env.StartRecorder(table.scratch() if args.get("env") is None else table.get(args["env"]))
+    policy = module.CartPoleLinearPolicy(args["params"])
+    reward = module.run_policy(policy, seed=args["seed"], env=recorder)
+    _EPISODES[-1].append((np.array(policy.params, dtype=np.float64), -1 if args["seed"] is None else int(args["seed"]),
+                          reward, recorder.start))
+    return reward
 
 
 def _execute(message):
     reply = {"op": "done", "re": message.get("n"), "status": "ok", "value": None, "state": {}}
     _EPISODES.append([])
     try:
-        entry = served.SERVED_BY_NAME[message["fn"]]
-        module = probes._import(entry.module)
-        args = {name: _callback(value["__callable__"]) if served.is_callable_mark(value) else value
-                for name, value in message["args"].items()}
-        state = message.get("state") or {}
-        if entry.name == "run_policy":
-            value = module.run_policy(module.CartPoleLinearPolicy(args["params"]), seed=args["seed"])
-        elif entry.owner:
-            obj = getattr(module, entry.owner)(*[state[name] for name in entry.init])
-            for name in entry.state:
-                _set(obj, name, state[name])
-            value = getattr(obj, entry.attribute)(**args)
-            reply["state"] = {name: _get(obj, name) for name in entry.updates}
+        if message["fn"] in served_env.ENTRIES:  # gym.make's environments (served_env.py)
+            value = _ENVS[0].execute(message["fn"], message["args"])
         else:
-            value = getattr(module, entry.attribute)(**args)
+            entry = served.SERVED_BY_NAME[message["fn"]]
+            module = probes._import(entry.module)
+            args = {name: _callback(value["__callable__"]) if served.is_callable_mark(value) else value
+                    for name, value in message["args"].items()}
+            state = message.get("state") or {}
+            if entry.name == "run_policy":
+                value = _play_served_episode(module, args)
+            elif entry.owner:
+                obj = getattr(module, entry.owner)(*[state[name] for name in entry.init])
+                for name in entry.state:
+                    _set(obj, name, state[name])
+                value = getattr(obj, entry.attribute)(**args)
+                reply["state"] = {name: _get(obj, name) for name in entry.updates}
+            else:
+                value = getattr(module, entry.attribute)(**args)
         channel.pack({"value": value, "state": reply["state"]})
         reply["value"] = value
     except CallbackFailed:
@@ -319,7 +350,8 @@ def _execute(message):
         episodes = _EPISODES.pop()
     reply["episodes"] = {"params": np.array([e[0] for e in episodes], dtype=np.float64).reshape(-1, 4),
                          "seeds": np.array([e[1] for e in episodes], dtype=np.int64),
-                         "rewards": np.array([e[2] for e in episodes], dtype=np.float64)}
+                         "rewards": np.array([e[2] for e in episodes], dtype=np.float64),
+                         "starts": np.array([e[3] for e in episodes], dtype=np.float64).reshape(-1, 4)}
     _send(reply)
 
 

@@ -57,7 +57,7 @@ _P1 = frozenset({"1.1.1"})
 SERVED = (
     Served("policy_action", "hwlib.cartpole", "CartPoleLinearPolicy", "__call__", "1.1.1", _P1, ("obs",),
            init=("params",)),
-    Served("run_policy", "hwlib.cartpole", None, "run_policy", None, _P1, ("params", "seed")),
+    Served("run_policy", "hwlib.cartpole", None, "run_policy", None, _P1, ("params", "seed", "env")),
     Served("scalar_finite_diff", "hwlib.finite_diff", None, "scalar_finite_diff", "1.2.1", frozenset({"1.2.1"}),
            ("f", "x", "h"), callables=("f",)),
     Served("eval_params", "hwlib.policy_search", None, "eval_params", "1.3.1", frozenset({"1.3.1", "1.1.1"}),

@@ -24,6 +24,7 @@ class Verdict:
     actual: str = ""
     difference: str = ""
     tolerance: str = ""
+    rule: str = ""  # a known mistake the judge sees by rule (``mistakes.py``: a wrong solution's "# rule:")
 
 
 def _number_text(number, digits=6):
@@ -166,5 +167,6 @@ def exact(name, tolerance=EXACTLY, locate=None):
         passed, words = difference_words(actual, want, tolerance, args, locate)
         return Verdict(passed, show(want), show(actual), words, "" if passed else tolerance.words())
 
+    judge.tolerance = tolerance
     return judge
 
