@@ -484,3 +484,43 @@ def test_the_real_run_judge_of_1_3_2_is_linear_in_its_records_and_capped():
     verdict = cartpole_checks.judge_real_rewards(args, result, None, [])
     assert not verdict.passed and "more than the 2000 this check reads" in verdict.actual
     assert time.process_time() - started < 2.0
+
+
+def test_the_graders_threads_parse_students_code_one_at_a_time(monkeypatch):
+    """The grader judges a submission's TODOs in threads, and CPython 3.11's AST builder keeps its
+    recursion count per interpreter (gh-106905): two threads in ``ast.parse`` at once can fail with
+    "SystemError: AST constructor recursion depth mismatch" (seen in CI). A garbage-collector
+    callback that yields the GIL makes the threads meet inside the parser; ``blocks.parse`` must
+    never fail (with its lock replaced by a no-op, this test fails)."""
+    import gc
+    import threading
+
+    from hwtools.grade import blocks
+
+    source = "\n".join(f"def f{i}(x):\n    return [(x, {{'a': (x, [x])}}) for _ in range(3)]" for i in range(200))
+    errors = []
+
+    def yield_gil(phase, info):
+        if phase == "start":
+            time.sleep(0)
+
+    def parse_often():
+        for _ in range(40):
+            try:
+                blocks.parse(source)
+            except SystemError as error:
+                errors.append(str(error))
+
+    threshold = gc.get_threshold()
+    gc.callbacks.append(yield_gil)
+    gc.set_threshold(50)
+    try:
+        threads = [threading.Thread(target=parse_often) for _ in range(3)]
+        for thread in threads:
+            thread.start()
+        for thread in threads:
+            thread.join()
+    finally:
+        gc.callbacks.remove(yield_gil)
+        gc.set_threshold(*threshold)
+    assert errors == []

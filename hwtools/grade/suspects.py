@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import ast
 
-from hwtools.grade.blocks import reindent
+from hwtools.grade.blocks import parse, reindent
 
 _SUSPECT_MODULES = {
     "_pytest": "pytest's internals", "pytest": "pytest", "unittest": "unittest", "socket": "the network (socket)",
@@ -36,7 +36,7 @@ def scan_body(body, module_level=False):
     ending the process, other processes, the network, files, patching modules, objects with a
     custom ``__eq__``... The feedback names them; they change no points."""
     try:
-        tree = ast.parse("\n".join(reindent(body, "")) if module_level else
+        tree = parse("\n".join(reindent(body, "")) if module_level else
                          "def _block():\n" + "\n".join(reindent(body, "    ") + ["    pass"]))
     except SyntaxError:
         return []
