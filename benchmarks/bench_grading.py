@@ -52,7 +52,7 @@ def fresh_submissions(blocks, layout, folder, count, tag):
     for number in range(count):
         bodies = {todo: ["\n".join(body) + f"\n# submission {tag}-{number}" for body in found]
                   for todo, found in reference.items()}
-        kits.append(blocks.write_submission(layout, Path(folder) / f"{tag}-{number}", bodies))
+        kits.append(kits.write_submission(layout, Path(folder) / f"{tag}-{number}", bodies))
     return kits
 
 
@@ -131,11 +131,11 @@ def private_reference(kit):
 ENDLESS = """
 import json, sys, tempfile, time
 from pathlib import Path
-from hwtools.grade import Grader, blocks, checks
+from hwtools.grade import Grader, blocks, checks, kits
 kit = Path(sys.argv[1])
 with tempfile.TemporaryDirectory() as folder, Grader(kit, time_limit=float(sys.argv[2]), jobs=int(sys.argv[3])) as grader:
     grader.grade(kit, todos=["2.2.1"])  # the reference's servers and answers: once per grader, not the submission's
-    loops = blocks.write_submission(blocks.load_layout(kit), Path(folder) / "loops",
+    loops = kits.write_submission(blocks.load_layout(kit), Path(folder) / "loops",
                                     {todo: "while True:\\n    pass" for todo in checks.GRADED_TODOS})
     started = time.monotonic()
     result = grader.grade(loops)

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging
+from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging, kits
 from hwtools.grade.episodes import Environments, Records
 from hwtools.grade.class_feedback import todo_markdown
 from hwtools.check import check_lines
@@ -230,7 +230,7 @@ def test_a_sigmoid_in_float32_earns_the_formula_but_not_the_precision_point():
 def test_finite_difference_tolerance_takes_another_order_and_float32_but_no_other_formula():
     rng = np.random.default_rng(1)
     spec = checks._coupled(rng, 5)
-    from hwtools.grade.probes import known_function
+    from hwtools.grade.in_sandbox.probes import known_function
 
     f, x, h = known_function(spec), rng.uniform(-1.5, 1.5, 5), np.array([0.01, 0.05, 0.3, 0.8, 0.2])
     eye = np.eye(5)
@@ -254,7 +254,7 @@ def test_finite_difference_tolerance_takes_another_order_and_float32_but_no_othe
 def test_no_hidden_input_repeats_a_visible_one():
     """A hidden input equal to a visible one would be shown in feedback, and answered by the key."""
     from hwtools.grade.grader import load_hidden_checks
-    from hwtools.grade.worker import fingerprint
+    from hwtools.grade.in_sandbox.channel import fingerprint
 
     hidden = load_hidden_checks(KIT)
     shown = {checks.show(value) for b in checks.BEHAVIOURS for args in b.visible_cases() for value in args.values()}
@@ -362,7 +362,7 @@ def is_crlf(path):
 def write_kit(layout, folder, bodies, crlf=False):
     """A student's kit with ``bodies`` ({todo: code}) in their blocks and the reference elsewhere;
     with ``crlf`` every file saved with Windows line endings, as Git for Windows checks it out."""
-    blocks.write_submission(layout, folder, bodies, others="reference")
+    kits.write_submission(layout, folder, bodies, others="reference")
     if crlf:
         for path in Path(folder).rglob("*.py"):
             path.write_bytes(path.read_bytes().replace(b"\r\n", b"\n").replace(b"\n", b"\r\n"))
@@ -492,7 +492,7 @@ def test_the_line_a_failing_check_prints_rebuilds_its_input_in_the_student_editi
     """Each visible case's line of Python, run in the student edition (its own hwtools and hwlib),
     gives the input the check gave the student's function."""
     from hwtools.cases import visible_case
-    from hwtools.grade.probes import known_function, rebuild_line
+    from hwtools.grade.in_sandbox.probes import known_function, rebuild_line
 
     edition, env = student_edition
     lines = {case_id: rebuild_line(case_id, b.probe) for todo in checks.GRADED_TODOS

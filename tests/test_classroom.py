@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, TODOS, Grader, blocks, checks, classroom, submissions, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks, classroom, kits, submissions, write_answer_key
 from hwtools.grade.gradebook import gradebook_header
 from hwtools.grade.grader import read_answer_key
 
@@ -123,7 +123,7 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
     made = Class(folder)
 
     # Correct: a folder, and a zip of a whole student edition one folder down, with macOS leftovers.
-    blocks.write_submission(layout, folder / "correct-folder", others="reference")
+    kits.write_submission(layout, folder / "correct-folder", others="reference")
     made.expect("correct-folder", graded(grader), full())
     edition = scratch / "edition"
     build_student_edition(KIT, edition, keep=frozenset(TODO_BY_ID), answer_key=False)
@@ -135,7 +135,7 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
     # Each wrong solution, zipped one folder down: its own TODO loses, every other keeps its points.
     for path in sorted(proof.WRONG.glob("*.txt")):
         todo, _, bodies = proof.parse_wrong_solution(path)
-        kit = blocks.write_submission(layout, scratch / "wrong" / path.stem / "hw1", {todo: bodies}, others="reference")
+        kit = kits.write_submission(layout, scratch / "wrong" / path.stem / "hw1", {todo: bodies}, others="reference")
         zip_folder(kit.parent, folder / f"wrong-{path.stem}.zip")
         kept = WRONG_KEPT.get(path.stem)
         if kept is None:  # a wrong solution added since: what grading it alone gives, which must lose points
@@ -244,7 +244,7 @@ def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class,
     for student, text in feedback.items():
         for shown in hidden_inputs:
             assert shown not in text, (student, shown)
-        for line in grader._secret_lines:
+        for line in grader._scrub.lines:
             assert line not in text, student
         assert str(a_class.folder) not in text and "hwclass-" not in text, "no path of the grading machine"
 
@@ -343,7 +343,7 @@ def read(path, layout):
 @pytest.fixture(scope="module")
 def a_kit(layout, tmp_path_factory):
     folder = tmp_path_factory.mktemp("kit") / "kit"
-    blocks.write_submission(layout, folder, others="reference")
+    kits.write_submission(layout, folder, others="reference")
     shutil.copytree(KIT / "notebooks", folder / "notebooks")
     return folder
 
@@ -467,7 +467,7 @@ def test_too_many_entries_too_many_bytes_empty_and_damaged(a_kit, layout, tmp_pa
 
 def test_duplicate_ids_and_formula_like_names(layout, grader, tmp_path):
     folder = tmp_path / "submissions"
-    blocks.write_submission(layout, folder / "dup", others="stub")
+    kits.write_submission(layout, folder / "dup", others="stub")
     zip_folder(folder / "dup", folder / "dup.zip")
     (folder / "=HYPERLINK(1)").mkdir()
     (folder / ".DS_Store").write_bytes(b"\0")
@@ -524,7 +524,7 @@ FORGED = "\r\x1b[2Kbob: graded, 39 of 39\x1b[0m\u202e"  # rewrites the instructo
 
 def test_control_characters_never_reach_the_gradebook_the_feedback_or_the_terminal(layout, grader, tmp_path):
     folder = tmp_path / "submissions"
-    blocks.write_submission(layout, folder / f"mallory{FORGED}", {"2.2.1": (
+    kits.write_submission(layout, folder / f"mallory{FORGED}", {"2.2.1": (
         f"import warnings\nwarnings.warn({FORGED!r})\nvalues = 0.5 * (1.0 + np.tanh(0.5 * z))")}, others="reference")
     with zipfile.ZipFile(folder / f"eve{FORGED}.zip", "w") as archive:
         archive.writestr(f"hw1/../{FORGED}.py", "x = 1\n")
@@ -557,7 +557,7 @@ def test_odd_ids_long_ids_and_a_block_too_deep_to_compile_each_get_their_own_row
     compiler (RecursionError escaped the grader): every row and every feedback file is written,
     each to its own file, and the deep block costs only its TODO."""
     folder = tmp_path / "submissions"
-    blocks.write_submission(layout, folder / "deep", {"2.2.1": DEEP}, others="reference")
+    kits.write_submission(layout, folder / "deep", {"2.2.1": DEEP}, others="reference")
     (folder / "Ana María").mkdir(parents=True)
     (folder / "Ana_Mar_a-8358ed27.zip").write_bytes(b"PK\x03\x04" + bytes(100))
     long_id = "a" * 245

@@ -27,7 +27,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, TODOS, blocks, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, blocks, kits, write_answer_key
 from hwtools.grade.grader import read_answer_key
 from hwtools.grade.gradescope import BUNDLE_MARKER
 
@@ -245,7 +245,7 @@ def test_the_bundled_requirements_cover_what_the_graded_code_imports():
 
 
 def test_a_correct_submission_earns_every_point(bundle, layout, tmp_path, container):
-    data, stdout = autograde(bundle, tmp_path, lambda folder: blocks.write_submission(layout, folder, others="reference"),
+    data, stdout = autograde(bundle, tmp_path, lambda folder: kits.write_submission(layout, folder, others="reference"),
                              container)
     assert data["score"] == AUTO_POINTS == 39
     assert all(test["status"] == "passed" for test in data["tests"])
@@ -327,7 +327,7 @@ def test_a_wrong_solution_loses_its_own_todo_and_is_told_what_to_fix(bundle, lay
     todo, _, bodies = proof.parse_wrong_solution(proof.WRONG / "forward_difference.txt")
 
     def bare_files(folder):  # Gradescope's upload of single files: the library's files without hwlib/
-        blocks.write_submission(layout, folder / "kit", {todo: bodies}, others="reference")
+        kits.write_submission(layout, folder / "kit", {todo: bodies}, others="reference")
         for path in (folder / "kit" / "hwlib").glob("*.py"):
             shutil.move(path, folder / path.name)
         shutil.rmtree(folder / "kit")

@@ -1,15 +1,52 @@
-"""hwlib never imports the tools (hwtools, instructor): the homework stands on its own. (That no
-package of the kit has an import cycle is tests/test_release.py::test_the_kit_has_no_import_cycles.)"""
+"""Dependencies point one way. hwlib never imports the tools (hwtools, instructor): the homework
+stands on its own. What runs inside the grader's sandbox (``hwtools/grade/in_sandbox/``, copied
+whole into every kit) imports nothing outside its folder. (That no package of the kit has an import
+cycle is tests/test_release.py::test_the_kit_has_no_import_cycles.)"""
 
 import ast
+import shutil
+import subprocess
+import sys
+import sysconfig
 from pathlib import Path
 
 KIT = Path(__file__).resolve().parents[1]
+IN_SANDBOX = KIT / "hwtools" / "grade" / "in_sandbox"
+
+
+def imports(path):
+    """(line, level, module name) of every import statement of the file at ``path``, at any depth."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, 0, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            found.append((node.lineno, node.level, node.module or ""))
+    return found
 
 
 def test_hwlib_never_imports_the_tools():
     for path in (KIT / "hwlib").rglob("*.py"):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            names = [alias.name for alias in node.names] if isinstance(node, ast.Import) else \
-                [node.module or ""] if isinstance(node, ast.ImportFrom) else []
-            assert not any(name.split(".")[0] in {"hwtools", "instructor"} for name in names), path
+        assert not any(name.split(".")[0] in {"hwtools", "instructor"} for _, _, name in imports(path)), path
+
+
+def test_what_runs_in_the_sandbox_imports_nothing_outside_its_folder(tmp_path):
+    """Read: every import of in_sandbox/ is relative to the folder itself, of the standard library,
+    or of numpy and gymnasium (the kit's own dependencies, there in the sandbox). Run: the folder,
+    copied alone as a kit's ``_hwgrade/`` is, imports in a Python that sees only it and the
+    installed packages (not the kit's hwtools or hwlib)."""
+    allowed = set(sys.stdlib_module_names) | {"numpy", "gymnasium"}
+    for path in sorted(IN_SANDBOX.glob("*.py")):
+        for line, level, name in imports(path):
+            where = f"{path.relative_to(KIT)}:{line}"
+            assert level <= 1, f"{where}: imports from outside in_sandbox/ ({'.' * level}{name})"
+            assert level == 1 or name.split(".")[0] in allowed, f"{where}: imports {name}, outside in_sandbox/"
+    shutil.copytree(IN_SANDBOX, tmp_path / "_hwgrade")
+    names = sorted(path.stem for path in IN_SANDBOX.glob("*.py") if path.stem != "__init__")
+    code = (f"import sys; sys.path[:] = [{str(tmp_path)!r}, {sysconfig.get_paths()['purelib']!r}] + "
+            "[p for p in sys.path if 'site-packages' not in p]; "
+            f"import {', '.join(f'_hwgrade.{name}' for name in names)}")
+    # -I: no current folder, no user site; -S: no .pth files, so the kit's editable install is not found
+    result = subprocess.run([sys.executable, "-I", "-S", "-c", code], capture_output=True, text=True, timeout=120,
+                            cwd=tmp_path)
+    assert result.returncode == 0, result.stderr

@@ -17,7 +17,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from hwtools.grade import broker, channel, served
+from hwtools.grade import broker
+from hwtools.grade.in_sandbox import channel, served
 
 
 class FakeWorker:
@@ -379,10 +380,10 @@ def test_a_worker_that_stops_reading_is_killed_at_the_run_s_wall_limit(tmp_path)
     and the worker is killed."""
     import threading
 
-    from hwtools.grade import reference, sandbox
+    from hwtools.grade import kits, sandbox
 
     kit = tmp_path / "kit"
-    for relative, text in reference.runtime_files().items():
+    for relative, text in kits.sandboxed_files().items():
         (kit / relative).parent.mkdir(parents=True, exist_ok=True)
         (kit / relative).write_text(text)
     (kit / "_hwgrade" / "runtime.py").write_text(SILENT_RUNTIME % BIG)

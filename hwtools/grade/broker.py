@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hwtools.grade import channel, probes, served, served_env
+from hwtools.grade.in_sandbox import channel, probes, served, served_env
 from hwtools.grade.episodes import (  # noqa: F401 - Records: the records' type, given here too
     EVALUATION, IN_ENV, MAX_STEPS, RUN_POLICY, Environments, Episode, Records, start_of,
 )

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from hwtools.grade.episodes import OWN_LOOP
-from hwtools.grade.probes import training_objective
+from hwtools.grade.in_sandbox.probes import training_objective
 from hwtools.grade.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, exact, show
 
 

@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hwtools import markers
-from hwtools.grade import blocks, class_summary
+from hwtools.grade import class_summary, kits
 from hwtools.grade.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
 from hwtools.grade.gradebook import StudentResult, gradebook_text, status_of
@@ -92,7 +92,7 @@ def grading_fingerprint(grader):
     ``hwlib``, its hidden checks, the grader's own code and the tables it reads, the limits, the
     Python and the sandbox. A saved result is reused only under the same fingerprint."""
     digest = hashlib.sha256(f"state {STATE_VERSION}\0".encode())
-    digest.update(blocks.files_digest(grader.layout.files).encode())
+    digest.update(kits.files_digest(grader.layout.files).encode())
     hidden = Path(grader.reference) / HIDDEN_CHECKS
     digest.update(hidden.read_bytes() if hidden.is_file() else b"no hidden checks")
     code = sorted(Path(__file__).resolve().parent.glob("*.py")) + [Path(__file__).resolve().parents[1] / "todos.py"]

@@ -54,7 +54,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from hwtools.grade import blocks
+from hwtools.grade import kits
 from hwtools.grade.class_feedback import UNGRADED_HELP, md_escape, todo_markdown
 from hwtools.grade.gradebook import GRADED, NOT_ISOLATED, status_of
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
@@ -151,7 +151,7 @@ def _scrub(source):
     for name in SCRUBBED:
         target = source / name
         if target.is_dir() and not target.is_symlink():
-            blocks.remove_tree(target)
+            kits.remove_tree(target)
     return True
 
 

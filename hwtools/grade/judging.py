@@ -13,8 +13,8 @@ replaced (``Scrubber``).
 from __future__ import annotations
 
 from hwtools.grade import broker, checks, mistakes, suspects
-from hwtools.grade.channel import fingerprint, text
-from hwtools.grade.probes import rebuild_line
+from hwtools.grade.in_sandbox.channel import fingerprint, text
+from hwtools.grade.in_sandbox.probes import rebuild_line
 from hwtools.todos import TODO_BY_ID
 
 _STATUS = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed"}

@@ -6,7 +6,7 @@ maps a probe's name to its function and ``RESULTS`` to the schema of its answer 
 its dtype kinds and number of dimensions), which the grader enforces on what comes back: an
 answer with other names, other dtypes or more dimensions fails its case.
 
-The probes run in the sandbox (the grader copies this file into every kit); the grader imports
+The probes run in the sandbox (this folder is copied into every kit); the grader imports
 this module too, for ``RESULTS`` and the known functions below, so it imports nothing beyond
 numpy at the top: ``hwlib`` is imported inside the probes, from the kit under test only.
 """
