@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 
 from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks, classroom, kits, submissions, write_answer_key
+from hwtools.grade.checks.verdicts import show
 from hwtools.grade.gradebook import gradebook_header
 from hwtools.grade.grader import read_answer_key
 
@@ -238,7 +239,7 @@ def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class,
     assert "rejected: a path that leaves the submission" in feedback["traversal"]
     assert "Nothing of this submission was run" in feedback["huge"]
     assert "on a hidden input (hidden inputs are not shown" in feedback["cheat-hardcoded_visible"]
-    hidden_inputs = [checks.show(value) for todo in checks.GRADED_TODOS for _, _, args in grader.cases[todo].hidden
+    hidden_inputs = [show(value) for todo in checks.GRADED_TODOS for _, _, args in grader.cases[todo].hidden
                      for value in args.values() if isinstance(value, np.ndarray) and np.unique(value).size >= 3]
     assert hidden_inputs
     for student, text in feedback.items():

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, kits, mistakes, write_answer_key
+from hwtools.grade.checks.verdicts import show
 from hwtools.grade.in_sandbox import served
 from hwtools.grade.feedback import render
 from cheats import leak_search
@@ -487,7 +488,7 @@ def test_feedback_shows_visible_failures_and_never_a_hidden_input(grader, layout
     assert entry["first_failure"]["hidden"] is False and "x=" in entry["first_failure"]["input"]
     report = render(result)
     for case_id, _, args in grader.cases["1.2.1"].hidden:
-        assert checks.show(args["x"]) not in report, case_id
+        assert show(args["x"]) not in report, case_id
     for line in grader._scrub.lines:
         assert line not in report
 

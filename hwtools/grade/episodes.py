@@ -11,7 +11,7 @@ An episode reaches the records in one of four ways (``door``), each played on th
 
 ``determined`` says whether the start state follows from a seed: a seeded reset, or a later
 episode of an environment whose last seeded reset started its chain. ``Records.arrays()`` gives
-the judges (``cartpole_checks.py``) numpy arrays; an own loop's reset that no step followed is
+the judges (``checks/p1_cartpole.py``) numpy arrays; an own loop's reset that no step followed is
 not an episode (a reset to seed the environment, then ``reset()`` per episode, is gymnasium's
 idiom). ``Environments`` keeps the state of each ``gym.make`` environment of one run.
 Standard library and numpy only.

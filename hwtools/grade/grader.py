@@ -5,7 +5,7 @@ never ``hwlib``, never anything from the submission. For each TODO T it builds a
 student's blocks for T and a stub in every other block, and runs T's cases on it in a sandboxed
 worker (``broker.run_cases``). When the student's code calls another TODO's function (or
 ``run_policy``), the worker forwards the call and the reference server answers it
-(``reference.py``, ``served.py``): a mistake costs points only in the TODO where it was made,
+(``reference.py``, ``in_sandbox/served.py``): a mistake costs points only in the TODO where it was made,
 and no process that runs a student's code holds any reference solution. The reference's own
 answers (``_reference_values``) and the re-scoring services come from the same server.
 

@@ -8,7 +8,7 @@ re-score a run (the notebook's training run of 1.3.3).
 
 A ``ReferencePool`` keeps a few servers for one ``Grader``: each is a worker process
 (``Sandbox.start``) on one private copy of the reference kit, told by its first message to serve
-(``runtime.py``). A run borrows one for its whole conversation (``acquire``/``release``); a server
+(``in_sandbox/runtime.py``). A run borrows one for its whole conversation (``acquire``/``release``); a server
 that failed or timed out is ended, never lent again. Idle servers end after ``idle`` seconds, and
 all of them with ``close()``. The kit is written in a folder only this user can read. A pool is
 ``trusted`` when its kit holds no student code (the reference's; the student edition's preview
