@@ -8,7 +8,7 @@
    (alternating, so that a change of load hits both alike), a copy without them. The README's
    target is 30 s on a quiet 2-core box; on a shared machine the CPU seconds are the better guide
    to what a quiet box gives.
-2. **One check per TODO** (``hwtools.check.grade_todo``, what ``check("1.2.1")`` runs): wall and
+2. **One check per TODO** (``hwtools.check_cell.grade_todo``, what ``check("1.2.1")`` runs): wall and
    CPU seconds in the instructor's edition (grading the solutions, hidden inputs included) and in
    a student edition whose TODOs hold the solutions (the answer key, visible checks only: what a
    student who is done waits for). The target is 3 s per TODO on 2 cores.
@@ -104,7 +104,7 @@ def bench_run_all(rounds):
 
 
 def bench_checks(rounds):
-    from hwtools.check import grade_todo
+    from hwtools.check_cell import grade_todo
     from hwtools.grade import checks
     from instructor.release import build_student_edition
     from hwtools.todos import TODO_BY_ID

@@ -8,7 +8,7 @@ It checks first and writes nothing until then:
    .open_submission``, the one that reads a class's zips), which must find the code of every TODO;
    otherwise it stops, naming the TODO and the file, and writes nothing;
 2. the visible checks run, each as the notebook's ``check("1.2.1")`` cell runs it
-   (``hwtools.check``), and it says which fail and whether training converges (TODO 1.3.3). A
+   (``hwtools.check_cell``), and it says which fail and whether training converges (TODO 1.3.3). A
    failing check does not stop the hand-in: it is yours to decide.
 
 Then it writes into ``handin/`` (next to the kit's ``hwlib/`` unless ``--out`` says otherwise):
@@ -40,7 +40,8 @@ import zipfile
 from pathlib import Path
 
 from hwtools import markers
-from hwtools.check import KIT_ROOT, CheckError, check_lines, grade_todo
+from hwtools.check_cell import CheckError, check_lines, grade_todo
+from hwtools.not_done import KIT_ROOT
 
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # the earliest date a zip can hold: no time stamps
 ANDREW_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")

@@ -2,7 +2,7 @@
 instructor, and the solution blocks in them (read by ``hwtools.markers`` with the instructor's rules).
 
 Both editions start here: the student edition (``instructor/release.py``) and the Gradescope
-bundle (``instructor/gradescope.py``).
+bundle (``instructor/gradescope_bundle.py``).
 """
 
 from __future__ import annotations

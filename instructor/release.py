@@ -1,7 +1,7 @@
 """Build the student edition of the kit from the instructor's kit (the one source of truth).
 
     python -m instructor.release student OUT_DIR [--source KIT_DIR] [--force] [--keep TODO ...]
-    python -m instructor.release gradescope OUT.zip [--source KIT_DIR] [--force]   (see instructor/gradescope.py)
+    python -m instructor.release gradescope OUT.zip [--source KIT_DIR] [--force]   (see instructor/gradescope_bundle.py)
 
 Solution code is fenced, in ``hwlib`` and in the notebooks' code cells, by comment lines
 
@@ -53,7 +53,7 @@ import sys
 from pathlib import Path
 
 from hwtools.todos import TODO_BY_ID
-from instructor import gradescope
+from instructor import gradescope_bundle
 from instructor.given_files import drop_hidden_tests, transform_pyproject, transform_readme
 from instructor.kit import (HOMEWORK_FOLDERS, INSTRUCTOR_ONLY, ReleaseError, file_blocks, find_blocks, is_instructor_only,
                             kit_files, read_text)
@@ -183,7 +183,7 @@ def main(argv=None):
     student.add_argument("--keep", action="append", default=[], metavar="TODO", help="keep this TODO's solution (for checking the tests)")
     student.add_argument("--no-answer-key", action="store_true",
                          help="skip the grader's answer key (then the student edition's grader has nothing to compare with)")
-    gradescope.add_parser(commands, Path(__file__).resolve().parents[1])
+    gradescope_bundle.add_parser(commands, Path(__file__).resolve().parents[1])
     args = parser.parse_args(argv)
     if args.edition == "gradescope":
         return args.run(args)

@@ -30,7 +30,7 @@ from hwtools.grade.checks import p1_cartpole, p2_logreg
 from hwtools.grade.checks.verdicts import show, tell_apart
 from hwtools.grade.episodes import Environments, Records
 from hwtools.grade.class_feedback import todo_markdown
-from hwtools.check import check_lines
+from hwtools.check_cell import check_lines
 from hwtools.grade.feedback import failure_words, render
 from test_grading import full_points, parse_wrong_solution, points
 

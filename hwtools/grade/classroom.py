@@ -12,7 +12,7 @@ without their ``hwlib/`` folder) is read as ``hwlib/``, and a folder whose only 
 Nothing in a submission is trusted: ``submissions.py`` reads it (what is copied, what rejects
 it), and the student's code then runs only in the grader's sandbox. This module runs the class:
 it grades the submissions, saves each result, and writes the gradebook (``gradebook.py``) and
-the feedback (``class_feedback.py``), with a progress line (``progress.py``).
+the feedback (``class_feedback.py``), with a progress line (``class_progress.py``).
 
 Submissions are read, prepared and judged side by side (``--jobs``, default one per CPU) by ONE
 ``Grader`` (the reference's answers are computed once for the class), while their student code
@@ -53,7 +53,7 @@ from hwtools.grade import class_summary, kits
 from hwtools.grade.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
 from hwtools.grade.gradebook import StudentResult, gradebook_text, status_of
-from hwtools.grade.progress import Progress
+from hwtools.grade.class_progress import Progress
 from hwtools.grade.submissions import Unusable, file_name, kit_file_names, open_submission
 
 STATE_VERSION = 1

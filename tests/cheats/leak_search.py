@@ -17,7 +17,7 @@ import zlib
 
 import numpy as np
 
-from hwtools.grade import classroom, gradescope, kits
+from hwtools.grade import classroom, gradescope_autograder, kits
 from hwtools.grade.feedback import render
 
 
@@ -26,7 +26,7 @@ def outputs_of(result):
     file and Gradescope's results.json."""
     student = classroom.StudentResult("student", classroom.status_of(result), result)
     return [render(result), json.dumps(result), classroom.feedback_markdown(student),
-            json.dumps(gradescope.results_json(result, classroom.status_of(result)))]
+            json.dumps(gradescope_autograder.results_json(result, classroom.status_of(result)))]
 
 
 def decodings(texts, rounds=3):

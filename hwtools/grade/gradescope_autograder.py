@@ -1,7 +1,7 @@
 """Gradescope's autograder: grade the submission in ``/autograder/submission`` and write
 ``/autograder/results/results.json``. The bundle's ``run_autograder`` runs
 
-    python -m hwtools.grade.gradescope [--root /autograder]
+    python -m hwtools.grade.gradescope_autograder [--root /autograder]
 
 (built by ``python -m instructor.release gradescope OUT.zip``). The root comes from ``--root``, else
 the environment variable ``AUTOGRADER_ROOT``, else ``/autograder``; under it ``source/`` is the
@@ -63,7 +63,7 @@ from hwtools.grade.grader import Grader, GradingError
 from hwtools.grade.sandbox import DEFAULT_TIME_LIMIT, limit_own_memory
 from hwtools.todos import TODOS
 
-BUNDLE_MARKER = "hwgrade-bundle.json"  # at the root of the bundle's source: written by instructor/gradescope.py
+BUNDLE_MARKER = "hwgrade-bundle.json"  # at the root of the bundle's source: written by instructor/gradescope_bundle.py
 SCRUBBED = ("hwlib", "instructor")  # deleted from the bundle's source once loaded
 
 
@@ -240,7 +240,7 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.gradescope",
+    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.gradescope_autograder",
                                      description="Gradescope's run_autograder: grade ROOT/submission, write "
                                                  "ROOT/results/results.json.")
     parser.add_argument("--root", help="the autograder folder (default: $AUTOGRADER_ROOT, else /autograder)")
