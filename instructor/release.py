@@ -24,9 +24,9 @@ edition
   ``raise NotImplementedError()`` (or its STUB lines) between the same kept markers; in a
   Markdown cell it becomes ``YOUR ANSWER HERE``; every notebook's outputs, execution counts,
   execution timings and stored widget state are cleared (``instructor/notebooks.py``);
-* instructor-only files (``INSTRUCTOR_ONLY`` in ``instructor/kit.py``: this tool, tests/hidden/,
-  the tests of this tool and of the grader's proof, the wrong-solution fixtures, the
-  logistic-regression benchmark whose reference loop spells out answers) are left out, and so are
+* instructor-only files (``INSTRUCTOR_ONLY`` in ``instructor/kit.py``: ``instructor/`` with this
+  tool, the hidden checks and the wrong solutions; the tests of this tool and of the grader's
+  proof and their fixtures; the benchmarks whose reference loops spell out answers) are left out, and so are
   the top-level tests marked ``@pytest.mark.hidden`` in the other test files;
 * ``pyproject.toml`` runs the notebooks with ``--nbval-lax`` (stored notebooks have no outputs
   to compare, so cells must only run without error), and the README gets a short note for

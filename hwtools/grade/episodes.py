@@ -26,8 +26,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 RUN_POLICY, IN_ENV, OWN_LOOP, EVALUATION = 0, 1, 2, 3
-DOORS = {RUN_POLICY: "run_policy", IN_ENV: "run_policy in an environment", OWN_LOOP: "an env.reset/env.step loop",
-         EVALUATION: "eval_params"}
 MAX_STEPS = 200_000  # steps of own loops recorded per run
 MAX_ENVS = 2_000  # gym.make environments per run
 MAX_OPEN_ENVS = 32  # open at once; beyond, the least recently used one is closed

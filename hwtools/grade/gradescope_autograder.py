@@ -73,7 +73,7 @@ def autograder_paths(root=None):
             "results": root / "results" / "results.json"}
 
 
-def _points(value):
+def _score(value):
     return float(round(value, 2))
 
 
@@ -86,7 +86,7 @@ def _tests(result):
         entry = by_id.get(todo.id)
         name = f"{todo.id} {todo.title}"
         if entry is None:  # nothing was graded: the points test only, at 0
-            tests.append({"name": name, "number": todo.id, "score": 0.0, "max_score": _points(todo.auto),
+            tests.append({"name": name, "number": todo.id, "score": 0.0, "max_score": _score(todo.auto),
                           "status": "failed", "output": "Not graded: see the message at the top.",
                           "output_format": "md", "visibility": "after_published", "tags": ["points"]})
             continue
@@ -95,8 +95,8 @@ def _tests(result):
                       "status": "passed" if visible_pass and entry["checks"] else "failed",
                       "output": todo_markdown(entry, visible_only=True), "output_format": "md",
                       "visibility": "visible", "tags": ["visible inputs"]})
-        earned = _points(entry["auto_earned"])
-        tests.append({"name": name, "number": f"{todo.id}.1", "score": earned, "max_score": _points(todo.auto),
+        earned = _score(entry["auto_earned"])
+        tests.append({"name": name, "number": f"{todo.id}.1", "score": earned, "max_score": _score(todo.auto),
                       "status": "passed" if earned >= todo.auto else "failed",
                       "output": todo_markdown(entry), "output_format": "md",
                       "visibility": "after_published", "tags": ["points", "hidden inputs"]})
@@ -132,7 +132,7 @@ def results_json(result, status, notes=(), seconds=0.0, sandbox="", fault=None):
         notes = list(notes) + result["notes"]
         lines += [""] * bool(notes) + [f"- note: {md_escape(note)}" for note in notes]
     data = {
-        "score": _points(result["total"]["auto_earned"]) if result else 0.0,
+        "score": _score(result["total"]["auto_earned"]) if result else 0.0,
         "execution_time": round(seconds, 1),
         "output": "\n".join(lines).rstrip() + "\n",
         "output_format": "md",
