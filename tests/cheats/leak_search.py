@@ -17,16 +17,16 @@ import zlib
 
 import numpy as np
 
-from hwtools.grade import classroom, gradescope_autograder, kits
+from hwtools.grade import class_feedback, gradebook, gradescope_autograder, kits
 from hwtools.grade.feedback import render
 
 
 def outputs_of(result):
     """Everything a student may read of ``result``: the text report, the JSON, the class feedback
     file and Gradescope's results.json."""
-    student = classroom.StudentResult("student", classroom.status_of(result), result)
-    return [render(result), json.dumps(result), classroom.feedback_markdown(student),
-            json.dumps(gradescope_autograder.results_json(result, classroom.status_of(result)))]
+    student = gradebook.StudentResult("student", gradebook.status_of(result), result)
+    return [render(result), json.dumps(result), class_feedback.feedback_markdown(student),
+            json.dumps(gradescope_autograder.results_json(result, gradebook.status_of(result)))]
 
 
 def decodings(texts, rounds=3):
