@@ -292,6 +292,24 @@ def test_a_changed_submission_is_graded_again_and_only_it(a_class, first_run, gr
     assert not changed.reused and changed.auto_total == AUTO_POINTS
 
 
+def test_the_saved_results_are_stale_once_any_module_of_the_grader_changes(monkeypatch, tmp_path):
+    """A saved result is reused only under the same grading: a changed check (checks/), probe
+    (in_sandbox/) or TODO table makes every saved result stale."""
+    from types import SimpleNamespace
+
+    fake = SimpleNamespace(layout=SimpleNamespace(files={}), reference=tmp_path,
+                           sandbox=SimpleNamespace(python="python", isolated=True, how="", time_limit=1.0, memory_limit=1))
+    before = classroom.grading_fingerprint(fake)
+    read_bytes = Path.read_bytes
+    grade = Path(classroom.__file__).resolve().parent
+    for changed in (grade / "checks" / "p1_cartpole.py", grade / "in_sandbox" / "probes.py", grade / "judging.py",
+                    grade.parent / "todos.py"):
+        monkeypatch.setattr(Path, "read_bytes", lambda path, changed=changed: read_bytes(path) + b"#" * (path == changed))
+        assert classroom.grading_fingerprint(fake) != before, changed
+    monkeypatch.setattr(Path, "read_bytes", read_bytes)
+    assert classroom.grading_fingerprint(fake) == before
+
+
 def test_a_killed_run_resumes_without_grading_again_what_was_saved(a_class, first_run, grader, tmp_path):
     _, out, _, _ = first_run
     subset = tmp_path / "submissions"

@@ -95,9 +95,9 @@ def grading_fingerprint(grader):
     digest.update(kits.files_digest(grader.layout.files).encode())
     hidden = Path(grader.reference) / HIDDEN_CHECKS
     digest.update(hidden.read_bytes() if hidden.is_file() else b"no hidden checks")
-    code = sorted(Path(__file__).resolve().parent.glob("*.py")) + [Path(__file__).resolve().parents[1] / "todos.py"]
-    for path in code:
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    grade = Path(__file__).resolve().parent  # every module of the grader, in its folders too (checks/, in_sandbox/)
+    for path in sorted(grade.rglob("*.py")) + [grade.parent / "todos.py"]:
+        digest.update(path.relative_to(grade.parent).as_posix().encode() + b"\0" + path.read_bytes())
     box = grader.sandbox
     for part in (box.python, box.isolated, box.how, box.time_limit, box.memory_limit):
         digest.update(f"\0{part}".encode())

@@ -118,7 +118,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
         entry["notes"].append(f"warning (not a failure): {scrub(warning)}")
     if known is not None and any(check["failed_on"] == "visible" for check in entry["checks"]):
         mine = mistakes.signature(cases.visible, results, entry)
-        if not mistakes.untouched(mine):  # a stub matches no mistake: the table is not even made
+        if not mistakes.stopped_at_stubs(mine):  # a stub matches no mistake: the table is not even made
             name_mistake(entry, mistakes.name(todo, mine, known(todo)), scrub)
     return entry
 

@@ -35,8 +35,8 @@ def sandboxed_files():
 
 @functools.lru_cache(maxsize=1)
 def _sandboxed_files():
-    return tuple((f"{SANDBOXED_PACKAGE}/{path.name}", path.read_text(encoding="utf-8"))
-                 for path in sorted(IN_SANDBOX.glob("*.py")))
+    return tuple((f"{SANDBOXED_PACKAGE}/{path.relative_to(IN_SANDBOX).as_posix()}", path.read_text(encoding="utf-8"))
+                 for path in sorted(IN_SANDBOX.rglob("*.py")))
 
 
 def stub_lines(block, todo):

@@ -109,7 +109,7 @@ def signature(visible, results, entry):
     return Signature(cases, failing, rules)
 
 
-def untouched(mine):
+def stopped_at_stubs(mine):
     """True if every visible case of signature ``mine`` stopped at a TODO not done yet (a stub)."""
     return all("is not done yet" in case.get("error", "") for case in mine.cases.values())
 
