@@ -488,7 +488,7 @@ def test_two_runs_of_student_code_never_overlap(mode, request, tmp_path):
     starts only after every process of the first one is gone (its child too), so no lock, inotify
     watch or shared timing can carry anything between them."""
     box = request.getfixturevalue(mode)
-    kits = [make_kit(tmp_path / name, textwrap.dedent("""
+    two = [make_kit(tmp_path / name, textwrap.dedent("""
         started = time.time()
         if os.fork() == 0:  # a child that would live on, holding a lock
             import fcntl
@@ -498,7 +498,7 @@ def test_two_runs_of_student_code_never_overlap(mode, request, tmp_path):
         values = np.array([started, time.time()])
     """)) for name in ("a", "b")]
     outcomes = [None, None]
-    threads = [threading.Thread(target=lambda index=index: outcomes.__setitem__(index, run(kits[index], box)))
+    threads = [threading.Thread(target=lambda index=index: outcomes.__setitem__(index, run(two[index], box)))
                for index in range(2)]
     for thread in threads:
         thread.start()
