@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hwlib._checks import check_seed
+from hwlib.machinery.validation import check_seed
 
 FOOD_NAMES = ("Apple", "Carrot", "Cucumber", "Frozen Lemon", "Celery", "Onion", "Potato")
 NUM_CLASSES = len(FOOD_NAMES)

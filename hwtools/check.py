@@ -231,7 +231,7 @@ def check_lines(entry):
 # --------------------------------------------------------------------------------------------
 
 _STUB_CODE = re.compile(r"(pass|raise ([\w.]+\.)?(TodoNotDone|NotImplementedError)\b.*"
-                        r"|from hwlib(\._todo)? import TodoNotDone|import hwlib(\._todo)?|[A-Za-z_]\w* = None)")
+                        r"|from hwlib(\.machinery\.todos)? import TodoNotDone|import hwlib(\.machinery\.todos)?|[A-Za-z_]\w* = None)")
 
 
 def _is_stub(body):

@@ -8,7 +8,8 @@ from matplotlib.figure import Figure
 
 from hwlib import CartPoleLinearPolicy, run_policy
 from hwlib import landscape as landscape_module
-from hwlib.cartpole import episode_seeds, make_env, run_episodes
+from hwlib.cartpole import episode_seeds, make_env
+from hwlib.machinery.episodes import run_episodes
 from hwlib.landscape import (
     AXIS_LABELS,
     LandscapeExplorer,

@@ -10,7 +10,9 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from hwlib.cartpole import ALWAYS_LEFT_PARAMS, ALWAYS_RIGHT_PARAMS, MAX_EPISODE_REWARD, run_episodes
+from hwlib.cartpole import ALWAYS_LEFT_PARAMS, ALWAYS_RIGHT_PARAMS, MAX_EPISODE_REWARD
+from hwlib.machinery.episodes import run_episodes
+from hwlib.machinery.latest_only import LatestOnly
 from hwlib.plots.cartpole import EpisodeView
 from hwlib.widgets import (
     DEFAULT_PARAMS,
@@ -20,7 +22,6 @@ from hwlib.widgets import (
     SLIDER_MAX,
     SLIDER_MIN,
     PLAY_INTERVAL_MS,
-    LatestOnly,
     PanelControls,
     SliderPanel,
     render_panel,
@@ -375,7 +376,7 @@ def test_without_its_front_end_part_the_panel_draws_the_controls_values():
 
 
 class NotDoneYet(NotImplementedError):
-    """Stands in for hwlib._todo.TodoNotDone: a NotImplementedError that names its TODO."""
+    """Stands in for hwlib.machinery.todos.TodoNotDone: a NotImplementedError that names its TODO."""
 
     def __init__(self, todo):
         super().__init__(todo)
@@ -389,7 +390,7 @@ class NotDoneYet(NotImplementedError):
 def not_done_errors():
     errors = [NotDoneYet("1.1.1")]
     with contextlib.suppress(ImportError):
-        from hwlib._todo import TodoNotDone
+        from hwlib.machinery.todos import TodoNotDone
 
         errors.append(TodoNotDone("1.1.1"))
     return errors

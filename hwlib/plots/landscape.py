@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hwlib._checks import check_path, check_positive_number
+from hwlib.machinery.validation import check_path, check_positive_number
 from hwlib.cartpole import MAX_EPISODE_REWARD, OBSERVATION_NAMES
 from hwlib.plots._figure import figure_png, new_figure  # noqa: F401  (figure_png is re-exported)
 

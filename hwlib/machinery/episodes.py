@@ -1,52 +1,31 @@
-"""How the kit plays many CartPole episodes at once. Students need not read this.
+"""How the kit plays many CartPole episodes at once.
 
 ``play_batch(params, seeds)`` plays one episode per row of ``params``, all at once, with the
-step of gymnasium's vectorised CartPole: each episode starts exactly where ``reset(seed=...)``
-puts a single environment (the start state is read from a single environment) and moves by the
-vector environment's equations, so the rewards are those of the one-by-one loop.
+step of gymnasium's vectorised CartPole (``physics.py``): each episode starts exactly where
+``reset(seed=...)`` puts a single environment (the start state is read from a single environment)
+and moves by the vector environment's equations, so the rewards are those of the one-by-one loop.
 
 The batch computes actions with its own copy of equation (1) (``batch_actions``). It may do so
 for a policy only after ``agrees_with_equation_one`` has compared that copy with the policy's own
 ``__call__``: once per ``__call__`` function on many random parameters and states (the tie at zero
 included), then for every parameter vector on two probe states. A policy that disagrees is
-played step by step with its ``__call__``; a policy whose ``__call__`` is still a TODO stub raises
-its ``TodoNotDone`` from here.
+played step by step with its ``__call__`` (``play_from``); a policy whose ``__call__`` is still a
+TODO stub raises its ``TodoNotDone`` from here.
 
-``run_policy`` (``hwlib/cartpole.py``) hands its episode to ``current_route()`` when the kit's
-batch engine (``hwlib/_batch.py``) has set one for this thread.
+``run_episodes(params, seeds)`` is that for the reward landscape (``hwlib/landscape.py``) and the
+tests: one episode of ``CartPoleLinearPolicy(params[k])`` per row, batched where it may be.
 """
 
 from __future__ import annotations
 
-import threading
-
 import gymnasium as gym
 import numpy as np
 
-from hwlib import _physics
-from hwlib._todo import TodoNotDone
-
-ENV_ID = "CartPole-v1"
-NUM_OBSERVATIONS = 4
-
-class _Route(threading.local):
-    play = None  # the callable run_policy hands its episodes to, in this thread
-
-
-_route = _Route()
-
-
-def current_route():
-    """What ``run_policy`` should hand ``(policy, seed)`` to in this thread, or None (play it itself)."""
-    return _route.play
-
-
-def set_route(play):
-    """Make ``play(policy, seed) -> reward`` the route of this thread (None: none); returns the previous one."""
-    previous = _route.play
-    _route.play = play
-    return previous
-
+from hwlib.cartpole import ENV_ID, NUM_OBSERVATIONS, CartPoleLinearPolicy, make_env, play_episode
+from hwlib.machinery import physics
+from hwlib.machinery.progress import Progress
+from hwlib.machinery.todos import TodoNotDone
+from hwlib.machinery.validation import check_params_batch, check_seeds
 
 _START_STATES = {}  # seed -> the start state reset(seed=seed) gives; seeds repeat a lot in training
 
@@ -72,7 +51,7 @@ def start_states(seeds):
 
 def starts_of(seeds_or_states):
     """The start states (float64 (K, 4)) of episodes named by a seed (int) or by a start state (its
-    float64 bytes: an unseeded episode of a kit run, see ``hwlib/_batch.py``)."""
+    float64 bytes: an unseeded episode of a kit run, see ``batch.py``)."""
     if not any(isinstance(item, bytes) for item in seeds_or_states):
         return start_states(np.fromiter(seeds_or_states, dtype=np.int64, count=len(seeds_or_states)))
     from_seeds = iter(start_states(np.array([item for item in seeds_or_states if not isinstance(item, bytes)],
@@ -95,16 +74,16 @@ def batch_actions(params, observations):
 def play_batch(params, seeds=None, starts=None):
     """Total reward of one episode of equation (1) per row of ``params`` (float64, (K, 4)) from
     ``reset(seed=seeds[k])`` (int64, (K,)), or from the start state ``starts[k]`` (float64 (K, 4)),
-    all played at once with gymnasium's vectorised step (``hwlib/_physics.py``). The caller has
+    all played at once with gymnasium's vectorised step (``physics.py``). The caller has
     checked them."""
     starts = start_states(seeds) if starts is None else starts
-    return _physics.play(params, starts, physics())
+    return physics.play(params, starts, constants())
 
 
-class _Physics:
+class _Constants:
     """CartPole's constants, as gymnasium's environment has them."""
 
-    NAMES = tuple(name for name in _physics.CONSTANTS if name != "max_episode_steps")  # that one: from the spec
+    NAMES = tuple(name for name in physics.CONSTANTS if name != "max_episode_steps")  # that one: from the spec
 
     def __init__(self):
         env = gym.make(ENV_ID)
@@ -117,14 +96,14 @@ class _Physics:
         env.close()
 
 
-_PHYSICS = []
+_CONSTANTS = []
 
 
-def physics():
-    """CartPole's constants (``hwlib/_physics.py``'s ``CONSTANTS``), read once from gymnasium."""
-    if not _PHYSICS:
-        _PHYSICS.append(_Physics())
-    return _PHYSICS[0]
+def constants():
+    """CartPole's constants (``physics.py``'s ``CONSTANTS``), read once from gymnasium."""
+    if not _CONSTANTS:
+        _CONSTANTS.append(_Constants())
+    return _CONSTANTS[0]
 
 
 # --- may the batch play a policy with its own copy of equation (1)? ----------------------------
@@ -208,25 +187,74 @@ def _is_action(action):
     return isinstance(action, (int, np.integer))
 
 
-def linear_params(policy, linear_class):
-    """The float64 parameters (4,) of a policy of ``linear_class`` and their bytes, or (None, None)
-    for any other callable (or parameters that are not 4 finite numbers)."""
-    if not isinstance(policy, linear_class):
-        return None, None
+def linear_params(policy):
+    """The float64 parameters (4,) of a ``CartPoleLinearPolicy`` (or a subclass), or None for any
+    other callable (or parameters that are not 4 numbers: it is then played step by step)."""
+    if not isinstance(policy, CartPoleLinearPolicy):
+        return None
     params = policy.params
-    if type(params) is not np.ndarray or params.dtype != np.float64 or params.shape != (NUM_OBSERVATIONS,):
-        try:  # the policy's params were replaced after it was made: read them as they are now
-            params = np.array(params, dtype=np.float64).reshape(NUM_OBSERVATIONS)
-        except (TypeError, ValueError):
-            return None, None
-    data = params.tobytes()
-    if data not in FINITE_PARAMS:
-        if not np.isfinite(params).all():
-            return None, None
-        if len(FINITE_PARAMS) > 500_000:
-            FINITE_PARAMS.clear()
-        FINITE_PARAMS.add(data)
-    return params, data
+    if type(params) is np.ndarray and params.dtype == np.float64 and params.shape == (NUM_OBSERVATIONS,):
+        return params
+    try:  # the policy's params were replaced after it was made: read them as they are now
+        return np.array(params, dtype=np.float64).reshape(NUM_OBSERVATIONS)
+    except (TypeError, ValueError):
+        return None
 
 
-FINITE_PARAMS = set()  # the bytes of parameter vectors known to be finite
+# --- one by one, and many at once ---------------------------------------------------------------
+
+
+class _StartsAt(gym.Wrapper):
+    """An environment whose next ``reset`` puts CartPole in the given start state."""
+
+    def __init__(self, env, start):
+        super().__init__(env)
+        self.start = start
+
+    def reset(self, *, seed=None, options=None):
+        _, info = self.env.reset()
+        self.env.unwrapped.state = np.array(self.start, dtype=np.float64)
+        return np.array(self.start, dtype=np.float32), info
+
+
+def play_from(policy, start, env):
+    """Total reward of one plain episode of ``policy`` (its own ``__call__``, step by step) from a
+    seed (int) or a start state (its float64 bytes: an unseeded episode of a kit run), in ``env``."""
+    if isinstance(start, bytes):
+        return play_episode(policy, None, _StartsAt(env, np.frombuffer(start, dtype=np.float64))).total_reward
+    return play_episode(policy, start, env).total_reward
+
+
+def run_episodes(params, seeds, batched=True, progress=None):
+    """Total reward of one episode of ``CartPoleLinearPolicy(params[k])`` from ``reset(seed=seeds[k])``, for every row k.
+
+    ``params`` has shape (K, 4), ``seeds`` K entries. With ``batched`` (the default) the episodes
+    of every parameter vector on which ``__call__`` gives the actions of equation (1) are played
+    all at once, the others one by one with its ``__call__``; ``batched=False`` plays every episode
+    one by one. The rewards are the same. ``progress`` names the work for a progress bar in the
+    notebook (None: no bar). Returns a float64 array of K rewards.
+    """
+    params = check_params_batch(params, "params")
+    seeds = check_seeds(seeds, "seeds")
+    if len(seeds) != len(params):
+        raise ValueError(f"seeds must hold one seed per row of params ({len(params)}), got {len(seeds)}")
+    if not isinstance(batched, bool):
+        raise TypeError(f"batched must be True or False, got {batched!r}")
+    rewards = np.zeros(len(params))
+    with Progress(progress, len(params), "episodes") as bar:
+        if batched:
+            unique, inverse = np.unique(params, axis=0, return_inverse=True)
+            inverse = inverse.reshape(-1)
+            trusted = np.array([agrees_with_equation_one(CartPoleLinearPolicy(p), p) for p in unique])
+            batch_rows = np.flatnonzero(trusted[inverse])
+            if batch_rows.size:
+                rewards[batch_rows] = play_batch(params[batch_rows], seeds[batch_rows])
+                bar.advance(batch_rows.size)
+            one_by_one = np.flatnonzero(~trusted[inverse])
+        else:
+            one_by_one = np.arange(len(params))
+        env = make_env() if one_by_one.size else None
+        for row in one_by_one:
+            rewards[row] = play_from(CartPoleLinearPolicy(params[row]), int(seeds[row]), env)
+            bar.advance(1)
+    return rewards

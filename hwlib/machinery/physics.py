@@ -1,11 +1,11 @@
-"""CartPole's step for many episodes at once, and a helper process that plays batches. Students need not read this.
+"""CartPole's step for many episodes at once, and a helper process that plays batches.
 
-``play(params, starts, constants)`` is the loop of ``hwlib/_engine.py``'s ``play_batch``: it
+``play(params, starts, constants)`` is the loop of ``episodes.py``'s ``play_batch``: it
 needs only numpy, so that the helper process can run it without importing gymnasium.
 
-``HelperProcess`` runs this file as a script (``python hwlib/_physics.py``) beside the kit's
+``HelperProcess`` runs this file as a script (``python hwlib/machinery/physics.py``) beside the kit's
 sweep: while it plays the episodes half of the sweep's runs wait for, the kit runs the code of
-the other half (``hwlib/_batch.py``), so both cores of a 2-core machine work. Batches cross a
+the other half (``batch.py``), so both cores of a 2-core machine work. Batches cross a
 pipe as raw float64 numbers; the helper ignores Ctrl-C (the kit stops it) and ends when its
 input closes, so it never outlives the kit's process.
 
@@ -49,12 +49,12 @@ def play(params, starts, c):
     rewards = np.zeros(len(params))
     rows, going, num_going, steps = np.arange(len(params)), np.ones(len(params), dtype=bool), len(params), 0
     while num_going:
-        # Equation (1) on what env.step returns (float32), as _engine.batch_actions computes it.
+        # Equation (1) on what env.step returns (float32), as episodes.batch_actions computes it.
         score = p0 * x.astype(np.float32)
         score += p1 * x_dot.astype(np.float32)
         score += p2 * theta.astype(np.float32)
         score += p3 * theta_dot.astype(np.float32)
-        force = np.where(score < 0, c.force_mag, -c.force_mag)
+        force = (score < 0) * (2.0 * c.force_mag) - c.force_mag  # +force_mag where score < 0, else -force_mag
         costheta, sintheta = np.cos(theta), np.sin(theta)
         temp = np.square(theta_dot)  # temp = (force + polemass_length * theta_dot**2 * sintheta) / total_mass
         temp *= c.polemass_length

@@ -1,8 +1,8 @@
-"""The sweep's runs in two halves that take turns, so that both cores work. Students need not read this.
+"""The sweep's runs in two halves that take turns, so that both cores work.
 
-``hwlib/_batch.py``'s ``Session`` runs its tasks in threads, one at a time; what they wait for is
+``batch.py``'s ``Session`` runs its tasks in threads, one at a time; what they wait for is
 played in one batch. On a machine with two cores or more, a helper process
-(``hwlib/_physics.py``) plays one half's batch while the other half's code runs here, and this
+(``physics.py``) plays one half's batch while the other half's code runs here, and this
 process plays the rest of the batch once that code has run (``_Split`` chooses how much each
 plays, so that neither waits long). An episode's reward depends only on its key and each half's
 runs go on in a fixed order, so the numbers are those of one batch for all runs.
@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from hwlib import _engine, _physics
+from hwlib.machinery import episodes, physics
 
 
 MIN_HELPER_BATCH = 1000  # a smaller batch is played here: the helper process is not worth starting for it
@@ -43,7 +43,7 @@ def _take_turns(session, helper):
         if in_flight is not None:  # the other half's batch: the part played here, then the helper's
             keys, params, starts, cut, waiting = in_flight
             in_flight, started = None, time.perf_counter()
-            here = _engine.play_batch(params[cut:], starts=starts[cut:]) if cut < len(keys) else np.zeros(0)
+            here = episodes.play_batch(params[cut:], starts=starts[cut:]) if cut < len(keys) else np.zeros(0)
             parts = [(len(keys) - cut, time.perf_counter() - started)]
             there = helper.collect(params[:cut], starts[:cut], parts) if cut else np.zeros(0)
             split.played(parts)
@@ -75,9 +75,9 @@ class _Helper:
             return 0
         try:
             if self.process is None:
-                self.process = _physics.HelperProcess(_engine.physics())
+                self.process = physics.HelperProcess(episodes.constants())
             self.process.submit(params, starts)
-        except _physics.HelperFailed:
+        except physics.HelperFailed:
             self.close()
             self.failed = True
             return 0
@@ -88,10 +88,10 @@ class _Helper:
         started = time.perf_counter()
         try:
             rewards, seconds = self.process.collect()
-        except _physics.HelperFailed:
+        except physics.HelperFailed:
             self.close()
             self.failed = True
-            rewards, seconds = _engine.play_batch(params, starts=starts), time.perf_counter() - started
+            rewards, seconds = episodes.play_batch(params, starts=starts), time.perf_counter() - started
         parts.append((len(params), seconds))
         return rewards
 
