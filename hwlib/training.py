@@ -11,7 +11,7 @@ so the numbers are those your code gives one episode at a time (``batched=False`
 |-------------------------|--------------------------------------------------------------------|
 | ``eval_params`` calls   | a call runs twice: once to learn which episodes it asks for (any seeds: ``seed + k``, a generator, none), then for real, after they were played in one batch; once a run's calls have shown that their seeds follow from their arguments, only the real pass runs |
 | ``scalar_finite_diff``  | the same, so the 8 evaluations of one gradient are played in one batch |
-| the sweep's runs        | side by side, one at a time in a fixed order; what they all wait for is played together; on two cores, two halves of the runs take turns while a helper process plays part of the other half's batch (``hwlib/machinery/turns.py``) |
+| the sweep's runs        | side by side, one at a time in a fixed order; what they all wait for is played together |
 | episodes without a seed | start where the next ``reset()`` of the run's own environment, seeded once with the run's seed, starts them, so a run gives the same numbers every time, batched or not |
 | a policy that is not equation (1) | played step by step with your ``__call__``: slow; if that would take more than ``max_minutes``, the kit says so, with its estimate, before it starts |
 """

@@ -269,16 +269,16 @@ def run_threads_left(within=5.0):
 
 def interrupt_the_sweep(interrupt, monkeypatch, after_rounds=2, **options):
     """Send Kernel → Interrupt into the notebook's sweep once it has played ``after_rounds`` batches."""
-    rounds, original = [], _batch.Session.round_done
+    rounds, original = [], _batch.Session.play_round
     playing = threading.Event()
 
-    def counting(self, runs):
+    def counting(self):
         rounds.append(1)
         if len(rounds) >= after_rounds:
             playing.set()
-        return original(self, runs)
+        return original(self)
 
-    monkeypatch.setattr(_batch.Session, "round_done", counting)
+    monkeypatch.setattr(_batch.Session, "play_round", counting)
     watcher = interrupt_when(playing, interrupt)
     try:
         with pytest.raises(KeyboardInterrupt):
@@ -469,116 +469,6 @@ def test_each_unseeded_start_is_drawn_from_the_runs_env_once(monkeypatch, in_blo
     assert len(resets) < episodes / 2 if in_blocks else len(resets) == episodes
     monkeypatch.setattr(_replay, "_BLOCKS", [True])
     np.testing.assert_array_equal(rewards, run_training(3, 5, 0.001, seed=3, batched=False, progress=False).rewards)
-
-
-# --- the helper process that plays half of the sweep's batches (hwlib/_physics.py, hwlib/_turns.py) ---
-
-def helper_processes():
-    """This test run's live helper processes (hwlib/_physics.py run as a script)."""
-    from process_watch import live_processes
-
-    return live_processes(lambda cmdline: b"hwlib/machinery/physics.py" in cmdline.replace(b"\\", b"/"), settle=2.0)
-
-
-def test_the_sweep_gives_the_same_numbers_with_the_helper_without_it_and_when_it_fails(monkeypatch):
-    from hwlib.machinery import physics as _physics, turns as _turns
-
-    monkeypatch.setattr(_turns, "MIN_HELPER_BATCH", 1)  # a small sweep's batches go to the helper too
-    rates, options = [0.0005, 0.001, 0.002], {"num_seeds": 4, "num_training_iterations": 5, "progress": False}
-    with_helper = learning_rate_sweep(rates, **options).rewards
-    monkeypatch.setattr(_turns, "usable_cores", lambda: 1)
-    in_turn = learning_rate_sweep(rates, **options).rewards
-    monkeypatch.setattr(_turns, "usable_cores", lambda: 2)
-    calls = []
-
-    def fails_on_the_third_batch(self):
-        calls.append(1)
-        if len(calls) == 3:
-            self.process.kill()  # it dies in the middle of the sweep
-            self.process.wait()
-        return original_collect(self)
-
-    original_collect = _physics.HelperProcess.collect
-    monkeypatch.setattr(_physics.HelperProcess, "collect", fails_on_the_third_batch)
-    helper_died = learning_rate_sweep(rates, **options).rewards
-    assert len(calls) == 3  # after it died, every batch was played in this process
-    np.testing.assert_array_equal(with_helper, in_turn)
-    np.testing.assert_array_equal(with_helper, helper_died)
-    assert not helper_processes()
-
-
-def test_a_helper_that_cannot_start_leaves_the_sweep_to_this_process(monkeypatch):
-    from hwlib.machinery import physics as _physics, turns as _turns
-
-    monkeypatch.setattr(_turns, "MIN_HELPER_BATCH", 1)
-    monkeypatch.setattr(_physics.sys, "executable", "/nonexistent/python")
-    sweep = learning_rate_sweep([0.001], num_seeds=3, num_training_iterations=3, progress=False)
-    monkeypatch.undo()
-    for seed in range(3):
-        np.testing.assert_array_equal(sweep.rewards[0, seed],
-                                      run_training(3, learning_rate=0.001, seed=seed, batched=False, progress=False).rewards)
-
-
-def test_no_helper_process_outlives_a_sweep_an_error_or_an_interrupt(monkeypatch, kernel_interrupt):
-    from hwlib.machinery import turns as _turns
-
-    monkeypatch.setattr(_turns, "MIN_HELPER_BATCH", 1)
-    started = []
-    original = _turns._Helper.submit
-
-    def noting(self, params, starts):
-        sent = original(self, params, starts)
-        started.append(self.process.process.pid)
-        return sent
-
-    monkeypatch.setattr(_turns._Helper, "submit", noting)
-    learning_rate_sweep([0.001, 0.002], num_seeds=3, num_training_iterations=3, progress=False)
-    assert started and not helper_processes()
-    monkeypatch.setattr(policy_search, "eval_params", stub_eval_params)
-    with pytest.raises(TodoNotDone):
-        learning_rate_sweep([0.001, 0.002], num_seeds=3, progress=False)
-    monkeypatch.undo()
-    monkeypatch.setattr(_turns._Helper, "submit", noting)
-    started.clear()
-    interrupt_the_sweep(kernel_interrupt, monkeypatch, after_rounds=4)
-    assert started  # the helper was playing when the interrupt came
-    assert not helper_processes()
-
-
-def test_the_helper_ignores_ctrl_c_and_ends_when_the_kit_closes_its_input():
-    import signal
-
-    from hwlib.machinery import physics as _physics
-
-    params = np.array([PARAMS, [0.2, 0.1, 0.4, -0.6]])
-    starts = _episodes.start_states(np.array([3, 4]))
-    helper = _physics.HelperProcess(_episodes.constants())
-    try:
-        helper.submit(params, starts)
-        helper.collect()
-        helper.process.send_signal(signal.SIGINT)  # Kernel -> Interrupt signals the whole process group
-        helper.submit(params, starts)
-        rewards, seconds = helper.collect()
-        np.testing.assert_array_equal(rewards, _episodes.play_batch(params, starts=starts))
-        assert seconds >= 0
-    finally:
-        helper.close()
-    assert helper.process.returncode == 0  # it ended by itself when its input closed
-
-
-def test_the_split_gives_the_helper_what_keeps_both_cores_busy():
-    from hwlib.machinery.turns import _Split
-
-    split = _Split()
-    assert [split.ran(0.1) or split.cut(1000) for _ in range(4)] == [1000] * 4  # nothing measured yet: all
-    split.played([(500, 0.05), (500, 0.05)])  # turn 3's batch: 0.1 ms per episode
-    for turn in range(4, 9):
-        split.ran(0.1)
-        split.played([(1000, 0.1)])
-    # Turn 8's batch of 3000 episodes takes 0.3 s, played while turn 9's code (about turn 5's,
-    # 0.1 s) runs: the helper plays 2/3 of it, this process the rest after the code, 0.2 s each.
-    assert split.cut(3000) == 2000
-    assert split.cut(500) == 500  # shorter than the code: all to the helper
 
 
 def test_unseeded_starts_are_drawn_one_reset_at_a_time_if_gymnasium_draws_them_otherwise(monkeypatch):

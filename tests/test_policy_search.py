@@ -225,3 +225,28 @@ def test_in_a_kit_training_run_each_call_of_eval_params_checks_its_params_once(m
     assert counts[("check_params", "params")] == len(calls) + 1
     assert len(calls) < 2 * (1 + 9 * 4)  # most calls foreseen, not recorded first
     assert not {check for check, _ in counts} & {"check_params_batch", "check_seeds", "check_count_batch"}
+
+
+def test_what_the_notebook_says_about_choosing_a_rate_from_the_sweep():
+    # Every rate the sweep shows at 100% passes the 1.3.3 check: the check trains the notebook's run
+    # (seed TRAINING_SEED, from zeros), and that run is one of the sweep's.
+    assert settings.TRAINING_SEED in range(0, settings.SWEEP_NUM_SEEDS)  # learning_rate_sweep's seeds, from first_seed=0
+    sweep = learning_rate_sweep([0.0008], num_seeds=2, first_seed=settings.TRAINING_SEED, progress=False)
+    np.testing.assert_array_equal(sweep.rewards[0, 0], run_training(learning_rate=0.0008, progress=False).rewards)
+    # ... and a rate between two rates at 100% need not: 2**-10 lies between 8e-4 and 1e-3 and converges
+    # only at iteration 9 (the notebook's example).
+    assert iterations_to_converge(run_training(learning_rate=2.0**-10, progress=False).rewards) == 9
+    assert 8e-4 < 2.0**-10 < 1e-3 and {8e-4, 1e-3} <= set(settings.SWEEP_LEARNING_RATES)
+
+
+def test_the_sweep_says_what_to_check_when_no_run_converges_and_which_rates_to_choose():
+    from hwlib.training import SweepResult
+
+    never = SweepResult(np.array([1e-4, 1e-3]), np.arange(2), np.full((2, 2, 21), 9.0), 7)
+    assert "TODO 1.2.1" in never.advice() and "TODO 1.3.2" in never.advice() and "direction" in never.advice()
+    curves = np.full((3, 2, 21), 500.0)
+    curves[0, 1, :] = 9.0  # one seed of the first rate never converges
+    some = SweepResult(np.array([1e-4, 4e-4, 6e-4]), np.arange(2), curves, 7)
+    assert some.advice().startswith("Every seed converged within 7 iterations with the learning rate 0.0004 or 0.0006:")
+    curves[1:, 1, :] = 9.0
+    assert "0.0001 did best (50%)" in SweepResult(np.array([1e-4, 4e-4, 6e-4]), np.arange(2), curves, 7).advice()

@@ -42,7 +42,7 @@ import time
 import numpy as np
 
 from hwlib.cartpole import NUM_OBSERVATIONS, make_env
-from hwlib.machinery import episodes, turns
+from hwlib.machinery import episodes
 from hwlib.machinery.replay import (CLASSES, PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying,
                                     RunMemory, class_code, policy_of)
 from hwlib.machinery.validation import check_policy, check_seed
@@ -175,39 +175,30 @@ class Session(Replaying):
         for thread in threads:
             thread.start()
         try:
-            if turns.usable_cores() >= 2:
-                turns.rounds_side_by_side(self)
-            else:
-                self._rounds_in_turn()
+            self._rounds_in_turn()
         except BaseException:
             self._stop(threads)
             raise
         for thread in threads:
             thread.join()
 
-    def go_on(self, runs):
-        """Let every ready run of ``runs`` go on until it waits or ends; raise the first error of one."""
-        for run in runs:
-            if run.state == "ready":
-                self._hand_over(run)
-                if run.error is not None and not isinstance(run.error, Cancelled):
-                    raise run.error
-
-    def round_done(self, runs):
-        for run in runs:
-            if run.state == "waiting":
-                run.state = "ready"
-        if self.on_round is not None:
-            self.on_round(self)
-
     def _rounds_in_turn(self):
-        """Every run goes on until it waits; then their episodes are played; again."""
+        """Every run goes on, in order, until it waits for episodes or ends (the first error of one is
+        raised); then the episodes they all wait for are played in one batch; again."""
         while True:
-            self.go_on(self.runs)
+            for run in self.runs:
+                if run.state == "ready":
+                    self._hand_over(run)
+                    if run.error is not None and not isinstance(run.error, Cancelled):
+                        raise run.error
             if not any(run.state == "waiting" for run in self.runs):
                 return
             self.play_round()
-            self.round_done(self.runs)
+            for run in self.runs:
+                if run.state == "waiting":
+                    run.state = "ready"
+            if self.on_round is not None:
+                self.on_round(self)
 
     def _hand_over(self, run):
         """Let ``run``'s thread go on until it waits for episodes or ends."""
@@ -316,10 +307,10 @@ class Session(Replaying):
     def play_round(self):
         """Play every episode asked for or announced and not yet played, in one batch (and step by
         step those of policies that do not follow equation (1))."""
-        batch_keys, params, starts = self.take_requests()
-        self.store(batch_keys, episodes.play_batch(params, starts=starts) if batch_keys else None)
+        batch_keys, params, starts = self._take_requests()
+        self._store(batch_keys, episodes.play_batch(params, starts=starts) if batch_keys else None)
 
-    def take_requests(self):
+    def _take_requests(self):
         """The episodes asked for and not yet played: those of policies that follow equation (1)
         as ``(keys, params (K, 4), starts (K, 4))`` for one batch; the others are played here,
         step by step (or get the TodoNotDone their policy's check raised)."""
@@ -356,7 +347,7 @@ class Session(Replaying):
         params = np.frombuffer(b"".join([key[1] for key in batch_keys]), dtype=np.float64).reshape(-1, NUM_OBSERVATIONS)
         return batch_keys, params, episodes.starts_of([key[2] for key in batch_keys])
 
-    def store(self, batch_keys, rewards):
+    def _store(self, batch_keys, rewards):
         """Keep the rewards of a batch (None: nothing was batched); forget what is old."""
         results = self._results
         if batch_keys:

@@ -1,7 +1,7 @@
 """How the kit plays many CartPole episodes at once.
 
 ``play_batch(params, seeds)`` plays one episode per row of ``params``, all at once, with the
-step of gymnasium's vectorised CartPole (``physics.py``): each episode starts exactly where
+step of gymnasium's vectorised CartPole (``play``): each episode starts exactly where
 ``reset(seed=...)`` puts a single environment (the start state is read from a single environment)
 and moves by the vector environment's equations, so the rewards are those of the one-by-one loop.
 
@@ -22,7 +22,6 @@ import gymnasium as gym
 import numpy as np
 
 from hwlib.cartpole import ENV_ID, NUM_OBSERVATIONS, CartPoleLinearPolicy, make_env, play_episode
-from hwlib.machinery import physics
 from hwlib.machinery.progress import Progress
 from hwlib.machinery.todos import TodoNotDone
 from hwlib.machinery.validation import check_params_batch, check_seeds
@@ -74,16 +73,85 @@ def batch_actions(params, observations):
 def play_batch(params, seeds=None, starts=None):
     """Total reward of one episode of equation (1) per row of ``params`` (float64, (K, 4)) from
     ``reset(seed=seeds[k])`` (int64, (K,)), or from the start state ``starts[k]`` (float64 (K, 4)),
-    all played at once with gymnasium's vectorised step (``physics.py``). The caller has
-    checked them."""
+    all played at once with gymnasium's vectorised step (``play``). The caller has checked them."""
     starts = start_states(seeds) if starts is None else starts
-    return physics.play(params, starts, constants())
+    return play(params, starts, constants())
+
+
+# --- CartPole's step for many episodes at once ----------------------------------------------------
+
+CONSTANTS = ("gravity", "masspole", "total_mass", "length", "polemass_length", "force_mag", "tau",
+             "theta_threshold_radians", "x_threshold", "max_episode_steps")
+
+
+def play(params, starts, c):
+    """Total reward of one episode of equation (1) per row of ``params`` (float64 (K, 4)) from the
+    start state ``starts[k]`` (float64 (K, 4)); ``c`` holds CartPole's ``CONSTANTS``.
+
+    The step is gymnasium's own vectorised CartPole step (``CartPoleVectorEnv.step``: the same
+    equations, constants and order of operations), without its per-step checks and auto-reset,
+    and in place: the rewards are those of ``env.step``, bit for bit (``tests/test_cartpole.py``
+    compares it with gymnasium's vector environment and with the one-by-one loop). An episode
+    that has ended is still stepped (its reward is kept) until a quarter of those stepped have
+    ended; then the rest go on alone.
+    """
+    x, x_dot, theta, theta_dot = (np.array(row, dtype=np.float64) for row in starts.T)  # copies, stepped in place
+    p0, p1, p2, p3 = (np.ascontiguousarray(params[:, j]) for j in range(NUM_OBSERVATIONS))
+    rewards = np.zeros(len(params))
+    rows, going, num_going, steps = np.arange(len(params)), np.ones(len(params), dtype=bool), len(params), 0
+    while num_going:
+        # Equation (1) on what env.step returns (float32), as batch_actions computes it.
+        score = p0 * x.astype(np.float32)
+        score += p1 * x_dot.astype(np.float32)
+        score += p2 * theta.astype(np.float32)
+        score += p3 * theta_dot.astype(np.float32)
+        force = (score < 0) * (2.0 * c.force_mag) - c.force_mag  # +force_mag where score < 0, else -force_mag
+        costheta, sintheta = np.cos(theta), np.sin(theta)
+        temp = np.square(theta_dot)  # temp = (force + polemass_length * theta_dot**2 * sintheta) / total_mass
+        temp *= c.polemass_length
+        temp *= sintheta
+        temp += force
+        temp /= c.total_mass
+        below = np.square(costheta)  # length * (4/3 - masspole * costheta**2 / total_mass)
+        below *= c.masspole
+        below /= c.total_mass
+        np.subtract(4.0 / 3.0, below, out=below)
+        below *= c.length
+        thetaacc = c.gravity * sintheta  # (gravity * sintheta - costheta * temp) / below
+        thetaacc -= costheta * temp
+        thetaacc /= below
+        xacc = c.polemass_length * thetaacc  # temp - polemass_length * thetaacc * costheta / total_mass
+        xacc *= costheta
+        xacc /= c.total_mass
+        np.subtract(temp, xacc, out=xacc)
+        x += c.tau * x_dot  # Euler: the positions move with the old velocities
+        xacc *= c.tau
+        x_dot += xacc
+        theta += c.tau * theta_dot
+        thetaacc *= c.tau
+        theta_dot += thetaacc
+        steps += 1  # +1 reward for every step, the last one included
+        if steps >= c.max_episode_steps:  # truncated
+            rewards[rows[going]] = steps
+            break
+        ended = np.abs(x) > c.x_threshold
+        ended |= np.abs(theta) > c.theta_threshold_radians
+        ended &= going
+        if ended.any():
+            rewards[rows[ended]] = steps
+            going &= ~ended
+            num_going -= int(np.count_nonzero(ended))
+            if 4 * num_going < 3 * len(rows):
+                rows, x, x_dot, theta, theta_dot = rows[going], x[going], x_dot[going], theta[going], theta_dot[going]
+                p0, p1, p2, p3 = p0[going], p1[going], p2[going], p3[going]
+                going = np.ones(len(rows), dtype=bool)
+    return rewards
 
 
 class _Constants:
     """CartPole's constants, as gymnasium's environment has them."""
 
-    NAMES = tuple(name for name in physics.CONSTANTS if name != "max_episode_steps")  # that one: from the spec
+    NAMES = tuple(name for name in CONSTANTS if name != "max_episode_steps")  # that one: from the spec
 
     def __init__(self):
         env = gym.make(ENV_ID)
@@ -100,7 +168,7 @@ _CONSTANTS = []
 
 
 def constants():
-    """CartPole's constants (``physics.py``'s ``CONSTANTS``), read once from gymnasium."""
+    """CartPole's constants (``CONSTANTS``), read once from gymnasium."""
     if not _CONSTANTS:
         _CONSTANTS.append(_Constants())
     return _CONSTANTS[0]
