@@ -632,3 +632,25 @@ def test_slider_panel_returns_a_panel_that_displays_as_its_widget():
     assert isinstance(panel, SliderPanel)
     bundle = panel._repr_mimebundle_()
     assert bundle["application/vnd.jupyter.widget-view+json"]["model_id"] == panel.widget.model_id
+
+
+def test_the_panel_says_when_a_change_leaves_theta_pointing_where_it_pointed():
+    from hwlib.widgets import DIRECTION_NOTE, same_direction
+
+    assert same_direction((0, 0, -1, 0), (0, 0, -1.5, 0)) and same_direction((0.1, -0.5, -1, -0.5), (0.2, -1, -2, -1))
+    assert not same_direction((0, 0, -1, 0), (0, 0, 1, 0))  # the sign flips: another policy
+    assert not same_direction((0, 0, 0, 0), (0, 0, -1, 0)) and not same_direction((0, 0, -1, 0), (0, 0, -1, 0))
+    assert not same_direction((0, 0, -1, 0), (0, 0, -1, 0.01))
+    panel = SliderPanel((0.0, 0.0, -1.0, 0.0))
+    panel.param_sliders[2].value = -1.5  # θ₃ alone, the same sign: the same policy, the same episode
+    assert DIRECTION_NOTE in html_text(panel.reward_label.value) and DIRECTION_NOTE in panel.reward_label.tooltip
+    panel.step_slider.value = 3  # moving through the episode keeps the note
+    assert DIRECTION_NOTE in html_text(panel.reward_label.value)
+    panel.param_sliders[2].value = 1.0  # the sign flips: a new episode, no note
+    assert DIRECTION_NOTE not in html_text(panel.reward_label.value)
+
+
+def html_text(value):
+    import html
+
+    return html.unescape(value)
