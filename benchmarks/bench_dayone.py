@@ -86,18 +86,20 @@ def bench_run_all(rounds):
                 wall, cpu, cells = run_all(path)
                 results[name].append((wall, cpu, cells))
                 print(f"  Run All of p1 {name:16s}: {wall:6.1f} s wall, {cpu:6.1f} s CPU", flush=True)
-    print("\nRun All of p1 (median of %d)" % rounds)
+    print_runs("p1", results, slow_cells_of=("with check cells",))
+
+
+def print_runs(notebook, results, slow_cells_of):
+    """The medians of each way's runs; the cells over 0.5 s of the slowest run of the ways named."""
+    print(f"\nRun All of {notebook} (median of {len(next(iter(results.values())))})")
     for name, runs in results.items():
         print(f"  {name:16s}: {statistics.median(r[0] for r in runs):6.1f} s wall, "
               f"{statistics.median(r[1] for r in runs):6.1f} s CPU")
-    print_slow_cells(max(results["with check cells"], key=lambda r: r[0])[2], "the slowest run with check cells")
-
-
-def print_slow_cells(cells, which):
-    print(f"  cells of {which}, over 0.5 s:")
-    for cell_id, first, seconds in cells:
-        if seconds >= 0.5:
-            print(f"    {cell_id:14s} {seconds:6.1f} s  {first}")
+        if name in slow_cells_of:
+            print(f"  cells of the slowest run {name}, over 0.5 s:")
+            for cell_id, first, seconds in max(runs, key=lambda r: r[0])[2]:
+                if seconds >= 0.5:
+                    print(f"    {cell_id:14s} {seconds:6.1f} s  {first}")
 
 
 def bench_run_all_p2(rounds):
@@ -117,11 +119,7 @@ def bench_run_all_p2(rounds):
                     os.environ["OPENBLAS_NUM_THREADS"] = previous
             results[name].append((wall, cpu, cells))
             print(f"  Run All of p2, {name:16s}: {wall:6.1f} s wall, {cpu:6.1f} s CPU (load {os.getloadavg()[0]:.1f})", flush=True)
-    print("\nRun All of p2 (median of %d)" % rounds)
-    for name, runs in results.items():
-        print(f"  {name:16s}: {statistics.median(r[0] for r in runs):6.1f} s wall, "
-              f"{statistics.median(r[1] for r in runs):6.1f} s CPU")
-        print_slow_cells(max(runs, key=lambda r: r[0])[2], f"the slowest run with {name}")
+    print_runs("p2", results, slow_cells_of=tuple(results))
 
 
 def bench_checks(rounds):

@@ -227,9 +227,11 @@ def test_in_a_kit_training_run_each_call_of_eval_params_checks_its_params_once(m
     assert not {check for check, _ in counts} & {"check_params_batch", "check_seeds", "check_count_batch"}
 
 
+@pytest.mark.hidden  # the instructor's edition: the kit's own eval_params (a student's seeding may give other numbers)
 def test_what_the_notebook_says_about_choosing_a_rate_from_the_sweep():
     # Every rate the sweep shows at 100% passes the 1.3.3 check: the check trains the notebook's run
-    # (seed TRAINING_SEED, from zeros), and that run is one of the sweep's.
+    # (seed TRAINING_SEED, from zeros) with the kit's training code, and with eval_params as its
+    # docstring says, that run is one of the sweep's.
     assert settings.TRAINING_SEED in range(0, settings.SWEEP_NUM_SEEDS)  # learning_rate_sweep's seeds, from first_seed=0
     sweep = learning_rate_sweep([0.0008], num_seeds=2, first_seed=settings.TRAINING_SEED, progress=False)
     np.testing.assert_array_equal(sweep.rewards[0, 0], run_training(learning_rate=0.0008, progress=False).rewards)

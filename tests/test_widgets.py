@@ -637,7 +637,7 @@ def test_slider_panel_returns_a_panel_that_displays_as_its_widget():
 def test_the_panel_says_when_a_change_leaves_theta_pointing_where_it_pointed():
     from hwlib.widgets import DIRECTION_NOTE, same_direction
 
-    assert same_direction((0, 0, -1, 0), (0, 0, -1.5, 0)) and same_direction((0.1, -0.5, -1, -0.5), (0.2, -1, -2, -1))
+    assert same_direction((0, 0, -1, 0), (0, 0, -1.5, 0)) and same_direction((0.3, -0.2, 0.8, 0.1), (0.6, -0.4, 1.6, 0.2))
     assert not same_direction((0, 0, -1, 0), (0, 0, 1, 0))  # the sign flips: another policy
     assert not same_direction((0, 0, 0, 0), (0, 0, -1, 0)) and not same_direction((0, 0, -1, 0), (0, 0, -1, 0))
     assert not same_direction((0, 0, -1, 0), (0, 0, -1, 0.01))
