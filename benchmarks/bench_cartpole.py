@@ -41,9 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from hwlib import CartPoleLinearPolicy, policy_search, settings
-from hwlib.cartpole import run_policy as plain_run_policy
 from hwlib.training import TooSlow
-from hwlib.cartpole import make_env, random_policy_rewards
+from hwlib.cartpole import random_policy_rewards
 from hwlib.training import learning_rate_sweep, run_training
 
 KIT = Path(__file__).resolve().parents[1]
@@ -110,13 +109,17 @@ class using:
 # --- the measurements ---------------------------------------------------------------------------
 
 def bench_random_policies():
-    (params, rewards), kit_seconds = timed(random_policy_rewards, settings.NUM_RANDOM_POLICIES, settings.RANDOM_POLICY_SEED)
-    seeds = np.random.default_rng(settings.RANDOM_POLICY_SEED + 1).integers(0, 2**31 - 1, size=len(params))
-    env = make_env()
-    looped, loop_seconds = timed(lambda: [plain_run_policy(CartPoleLinearPolicy(p), seed=int(s), env=env) for p, s in zip(params, seeds)])
-    same = np.array_equal(rewards, looped)
-    print(f"1000 random policies: kit {kit_seconds:.2f} s, one by one with __call__ {loop_seconds:.2f} s "
-          f"({loop_seconds / kit_seconds:.0f}x), identical: {same} ({np.mean(rewards == 500):.1%} at 500)")
+    """1.1.3 as the notebook runs it (random_policy_rewards: the plain loop, one run_policy per policy)
+    beside the kit's batch engine on the same policies and seeds (what it would save)."""
+    from hwlib.cartpole import episode_seeds
+    from hwlib.machinery.episodes import run_episodes
+
+    (params, rewards), loop_seconds = timed(random_policy_rewards, settings.NUM_RANDOM_POLICIES, settings.RANDOM_POLICY_SEED)
+    seeds = episode_seeds(len(params), settings.RANDOM_POLICY_SEED + 1)
+    batched, batch_seconds = timed(run_episodes, params, seeds)
+    same = np.array_equal(rewards, batched)
+    print(f"1000 random policies: the plain loop (the notebook's) {loop_seconds:.2f} s, batched {batch_seconds:.2f} s "
+          f"({loop_seconds / batch_seconds:.0f}x), identical: {same} ({np.mean(rewards == 500):.1%} at 500)")
     return same
 
 
