@@ -58,8 +58,7 @@ from hwlib.cartpole import (
 )
 from hwlib.machinery.latest_only import LatestOnly
 from hwlib.machinery.panel_controls import (
-    LANDSCAPE_BUTTON_LABEL,
-    LANDSCAPE_TOOLTIP_UNCONNECTED,  # noqa: F401 - the button's tooltip until a landscape view is connected
+    LANDSCAPE_BUTTON_LABEL,  # noqa: F401 - the button's label, read with the panel's other texts
     STATUS_LINES,
     PanelControls,
 )
