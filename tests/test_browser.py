@@ -97,11 +97,14 @@ def chromium():
 
 @pytest.fixture(scope="module")
 def lab(chromium, tmp_path_factory):
-    """JupyterLab serving a copy of the kit's notebooks, so the test can never change them."""
+    """JupyterLab serving a copy of the kit's notebooks, so the test can never change them (and the
+    kit's example recordings beside them, where the p2 notebook's players find them)."""
     root = tmp_path_factory.mktemp("lab-root")
     (root / "notebooks").mkdir()
     for notebook in NOTEBOOKS.glob("*.ipynb"):
         shutil.copy2(notebook, root / "notebooks" / notebook.name)
+    if (KIT_ROOT / "data" / "audio").is_dir():  # copied: JupyterLab serves no file through a link leading outside its root
+        shutil.copytree(KIT_ROOT / "data" / "audio", root / "data" / "audio")
     with running_jupyterlab(root, tmp_path_factory.mktemp("lab-state")) as server:
         yield server
 
