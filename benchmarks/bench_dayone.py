@@ -1,6 +1,6 @@
-"""Day one's costs: Run All of problem 1, and the check cell of each TODO.
+"""Day one's costs: Run All of each notebook, and the check cell of each TODO.
 
-    .venv/bin/python benchmarks/bench_dayone.py [--rounds N] [--skip-run-all] [--done]
+    .venv/bin/python benchmarks/bench_dayone.py [--rounds N] [--skip-run-all] [--skip-p2] [--skip-checks] [--skip-pytest] [--done]
 
 1. **Run All of problem 1** (the instructor's edition, a fresh kernel, as ``nbconvert --execute``
    does): wall clock and CPU seconds (the kernel and everything it ran: the check cells' graders
@@ -8,6 +8,9 @@
    (alternating, so that a change of load hits both alike), a copy without them. The README's
    target is 30 s on a quiet 2-core box; on a shared machine the CPU seconds are the better guide
    to what a quiet box gives.
+   **Run All of problem 2** the same way, with hwlib's one BLAS thread and, side by side (alternating),
+   with ``OPENBLAS_NUM_THREADS`` set to the number of cores (OpenBLAS's own default), cell by cell:
+   the notebooks' "about N seconds" are these cell times at a stated load.
 2. **One check per TODO** (``hwtools.check_cell.grade_todo``, what ``check("1.2.1")`` runs): wall and
    CPU seconds in the instructor's edition (grading the solutions, hidden inputs included) and in
    a student edition whose TODOs hold the solutions (the answer key, visible checks only: what a
@@ -47,6 +50,7 @@ from pathlib import Path
 KIT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(KIT))
 P1 = KIT / "notebooks" / "p1_cartpole_finite_difference.ipynb"
+P2 = KIT / "notebooks" / "p2_food_cutting_logistic_regression.ipynb"
 
 
 def children_cpu():
@@ -92,15 +96,40 @@ def bench_run_all(rounds):
                 wall, cpu, cells = run_all(path)
                 results[name].append((wall, cpu, cells))
                 print(f"  Run All of p1 {name:16s}: {wall:6.1f} s wall, {cpu:6.1f} s CPU", flush=True)
-    print("\nRun All of p1 (median of %d)" % rounds)
+    print_runs("p1", results, slow_cells_of=("with check cells",))
+
+
+def print_runs(notebook, results, slow_cells_of):
+    """The medians of each way's runs; the cells over 0.5 s of the slowest run of the ways named."""
+    print(f"\nRun All of {notebook} (median of {len(next(iter(results.values())))})")
     for name, runs in results.items():
         print(f"  {name:16s}: {statistics.median(r[0] for r in runs):6.1f} s wall, "
               f"{statistics.median(r[1] for r in runs):6.1f} s CPU")
-    slowest = max(results["with check cells"], key=lambda r: r[0])[2]
-    print("  cells of the slowest run with check cells, over 0.5 s:")
-    for cell_id, first, seconds in slowest:
-        if seconds >= 0.5:
-            print(f"    {cell_id:14s} {seconds:6.1f} s  {first}")
+        if name in slow_cells_of:
+            print(f"  cells of the slowest run {name}, over 0.5 s:")
+            for cell_id, first, seconds in max(runs, key=lambda r: r[0])[2]:
+                if seconds >= 0.5:
+                    print(f"    {cell_id:14s} {seconds:6.1f} s  {first}")
+
+
+def bench_run_all_p2(rounds):
+    """Run All of p2 with hwlib's one BLAS thread, and with OpenBLAS's default (one per core), in turns."""
+    cores = str(os.cpu_count() or 1)
+    results = {"one BLAS thread": [], f"{cores} BLAS threads": []}
+    for _ in range(rounds):
+        for name in results:
+            previous = os.environ.pop("OPENBLAS_NUM_THREADS", None)
+            if name != "one BLAS thread":
+                os.environ["OPENBLAS_NUM_THREADS"] = cores  # the kernel inherits it; hwlib leaves a setting alone
+            try:
+                wall, cpu, cells = run_all(P2)
+            finally:
+                os.environ.pop("OPENBLAS_NUM_THREADS", None)
+                if previous is not None:
+                    os.environ["OPENBLAS_NUM_THREADS"] = previous
+            results[name].append((wall, cpu, cells))
+            print(f"  Run All of p2, {name:16s}: {wall:6.1f} s wall, {cpu:6.1f} s CPU (load {os.getloadavg()[0]:.1f})", flush=True)
+    print_runs("p2", results, slow_cells_of=tuple(results))
 
 
 def bench_checks(rounds):
@@ -175,6 +204,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--rounds", type=int, default=2)
     parser.add_argument("--skip-run-all", action="store_true")
+    parser.add_argument("--skip-p2", action="store_true")
     parser.add_argument("--skip-checks", action="store_true")
     parser.add_argument("--skip-pytest", action="store_true")
     parser.add_argument("--done", action="store_true", help="only the done student's path: pytest and hand-in")
@@ -189,6 +219,8 @@ def main():
         bench_checks(args.rounds)
     if not args.skip_run_all:
         bench_run_all(args.rounds)
+    if not args.skip_p2:
+        bench_run_all_p2(args.rounds)
     if not args.skip_pytest:
         bench_untouched_pytest()
     print(f"\nload average {os.getloadavg()[0]:.1f} at the end")

@@ -21,7 +21,8 @@ import time
 
 import numpy as np
 
-from hwlib.cartpole import CartPoleLinearPolicy, make_env, run_episodes, run_policy
+from hwlib.cartpole import CartPoleLinearPolicy, make_env, run_policy
+from hwlib.machinery.episodes import run_episodes
 from hwlib.landscape import GRID_SIZE, NUM_EPISODES, render_landscape, reward_slice
 from hwlib.plots.landscape import new_landscape_figure
 

@@ -4,6 +4,12 @@ Run from the kit's root, after ``pip install -r benchmarks/requirements-bench.tx
 
     python benchmarks/bench_logreg.py              # BLAS with its default number of threads
     python benchmarks/bench_logreg.py --threads 1  # single-threaded BLAS
+    python benchmarks/bench_logreg.py --blas       # one fit with each number of BLAS threads, side by side
+
+``--blas`` needs no scikit-learn: it times the kit's ``fit`` (the notebook's 2.3.2 training) in fresh
+processes with ``OPENBLAS_NUM_THREADS`` 1 and the number of cores (OpenBLAS reads it once, when numpy
+loads), in turns, and prints the load. ``hwlib`` caps BLAS at one thread unless the variable is set
+(``hwlib/__init__.py``); this is the measurement behind that choice.
 
 It uses the notebook's data (the course's ``data/data.npz`` if present, else the synthetic
 stand-in), its split and its settings (``hwlib/settings.py``: learning rate, iterations), and
@@ -40,12 +46,52 @@ def parse_arguments():
     parser.add_argument("--threads", type=int, default=None, help="BLAS threads (default: the library's own choice)")
     parser.add_argument("--iterations", type=int, default=None, help="training iterations (default: settings.P2_NUM_ITERATIONS)")
     parser.add_argument("--budget", type=float, default=20.0, help="seconds a natural solution may take before it is extrapolated")
+    parser.add_argument("--blas", action="store_true", help="only compare BLAS threads for one fit (no scikit-learn needed)")
+    parser.add_argument("--rounds", type=int, default=3, help="with --blas: fits per number of threads")
     parser.add_argument("--styles", default="2.2.1_naive,2.2.3_matrix,2.2.3_per_sample_loop,2.3.1_loop,2.3.1_two_class_fit",
                         help="comma-separated natural solutions to time (file names without .py), or 'all'")
     return parser.parse_args()
 
 
+ONE_FIT = """
+import time
+from hwlib import MultiClassLogisticRegressionClassifier, load_food_cutting, settings, train_test_split
+data = load_food_cutting()
+X, _, y, _ = train_test_split(data.features, data.labels, test_fraction=settings.TEST_FRACTION, seed=settings.SPLIT_SEED)
+start = time.perf_counter()
+MultiClassLogisticRegressionClassifier(X.shape[1], len(data.names)).fit(X, y, settings.P2_LEARNING_RATE, settings.P2_NUM_ITERATIONS)
+print(time.perf_counter() - start)
+"""
+
+
+def compare_blas_threads(rounds):
+    """One fit in a fresh process per number of BLAS threads, in turns, ``rounds`` times each."""
+    import subprocess
+
+    cores = os.cpu_count() or 1
+    seconds = {1: [], cores: []}
+    for _ in range(rounds):
+        for threads in seconds:
+            env = {**os.environ, "OPENBLAS_NUM_THREADS": str(threads), "OMP_NUM_THREADS": str(threads)}
+            done = subprocess.run([sys.executable, "-c", ONE_FIT], env=env, capture_output=True, text=True, check=True)
+            seconds[threads].append(float(done.stdout.strip().splitlines()[-1]))
+            print(f"  {threads} BLAS thread(s): {seconds[threads][-1]:.2f} s (load {os.getloadavg()[0]:.1f})", flush=True)
+    for threads, times in seconds.items():
+        print(f"one fit ({settings_line()}), {threads} BLAS thread(s): median {sorted(times)[len(times) // 2]:.2f} s, "
+              f"min {min(times):.2f} s, max {max(times):.2f} s")
+    return 0
+
+
+def settings_line():
+    from hwlib import settings  # noqa: PLC0415
+
+    return f"{settings.P2_NUM_ITERATIONS} iterations x 7 classes"
+
+
 ARGS = parse_arguments()
+if ARGS.blas:
+    print(f"{os.cpu_count()} cores, load average {', '.join(f'{v:.1f}' for v in os.getloadavg())}")
+    sys.exit(compare_blas_threads(ARGS.rounds))
 if ARGS.threads is not None:  # must happen before numpy loads its BLAS
     for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[variable] = str(ARGS.threads)

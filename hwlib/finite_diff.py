@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hwlib._checks import as_float_array
-from hwlib._todo import TodoNotDone  # noqa: F401 - the TODO's starting code raises it until you write it
+from hwlib.machinery.todos import TodoNotDone  # noqa: F401 - the TODO's starting code raises it until you write it
+from hwlib.machinery.validation import check_finite_diff_arguments
 
 
 def scalar_finite_diff(f, x, h):
@@ -24,7 +24,7 @@ def scalar_finite_diff(f, x, h):
     sizes, one per coordinate of ``x`` (a single number is used for every coordinate). ``f(x)``
     must return one finite number. Returns the N partial derivatives, shaped like ``x``.
     """
-    x_shape, x, h, f = _check_arguments(f, x, h)  # x, h: float64 of shape (N,); f returns a float
+    x_shape, x, h, f = check_finite_diff_arguments(f, x, h)  # x, h: float64 of shape (N,); f returns a float
     gradient = np.zeros_like(x)
     ### BEGIN SOLUTION 1.2.1
     ### HINT: for each coordinate i, perturb a copy of x by +h[i] and -h[i] in coordinate i only, and fill gradient[i] with equation (3)
@@ -34,39 +34,3 @@ def scalar_finite_diff(f, x, h):
         gradient[i] = (f(x + step) - f(x - step)) / (2.0 * h[i])
     ### END SOLUTION 1.2.1
     return gradient.reshape(x_shape)
-
-
-def _check_arguments(f, x, h):
-    """The argument checks of ``scalar_finite_diff``: x and h as float64 arrays of shape (N,), and an ``f``
-    that takes such an array (reshaped as the caller's x) and returns a checked float."""
-    if not callable(f):
-        raise TypeError(f"f must be callable as f(x) -> number, got {type(f).__name__}")
-    x = as_float_array(x, "x")
-    if x.ndim > 1 or x.size == 0:
-        raise ValueError(f"x must be a number or a non-empty 1-d array, got shape {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"x must hold only finite numbers, got {x!r}")
-    x_shape, point = x.shape, np.atleast_1d(x).copy()
-    steps = as_float_array(h, "h")
-    if steps.ndim == 0:
-        steps = np.full(point.shape, float(steps))
-    if steps.shape != point.shape:
-        raise ValueError(f"h must be a number or have the same shape as x, {point.shape}, got shape {steps.shape}")
-    if not np.all(np.isfinite(steps)) or np.any(steps <= 0):
-        raise ValueError(f"h must hold finite step sizes > 0, got {steps!r}")
-
-    def checked_f(perturbed):
-        value = f(np.asarray(perturbed, dtype=np.float64).reshape(x_shape))
-        return _scalar_value(value)
-
-    return x_shape, point, steps, checked_f
-
-
-def _scalar_value(value):
-    array = np.asarray(value)
-    if array.size != 1 or not np.issubdtype(array.dtype, np.number):
-        raise ValueError(f"f must return a single number, got {value!r}")
-    number = float(array.reshape(()))
-    if not np.isfinite(number):
-        raise ValueError(f"f must return a finite number, got {number}")
-    return number

@@ -25,14 +25,13 @@ range is rejected with an error that names the file and the problem.
 
 from __future__ import annotations
 
-import wave
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from hwlib._checks import check_seed
+from hwlib.machinery.validation import check_seed
 
 FOOD_NAMES = ("Apple", "Carrot", "Cucumber", "Frozen Lemon", "Celery", "Onion", "Potato")
 NUM_CLASSES = len(FOOD_NAMES)
@@ -118,28 +117,6 @@ def find_audio_examples(audio_dir=None):
         if matches:
             examples[label] = matches[0]
     return examples
-
-
-def read_audio_example(path):
-    """One example recording as ``(samples, sample_rate)``: its channels averaged to mono, in [-1, 1].
-
-    The course's recordings are 16-bit PCM WAV files with 4 channels (the contact microphones).
-    Averaging them gives one track a browser can play everywhere and a quarter of the size.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"audio file {path} does not exist")
-    try:
-        with wave.open(str(path), "rb") as recording:
-            num_channels, sample_width = recording.getnchannels(), recording.getsampwidth()
-            sample_rate, frames = recording.getframerate(), recording.readframes(recording.getnframes())
-    except (wave.Error, EOFError) as error:
-        raise ValueError(f"{path} is not a readable WAV file: {error}") from None
-    if sample_width != 2:
-        raise ValueError(f"{path}: expected 16-bit samples, got {8 * sample_width}-bit")
-    samples = np.frombuffer(frames, dtype="<i2")
-    samples = samples[: len(samples) - len(samples) % num_channels].reshape(-1, num_channels)
-    return samples.mean(axis=1) / 32768.0, sample_rate
 
 
 # --- reading and checking the course's file -------------------------------------------------

@@ -4,10 +4,10 @@ A slice lets two coordinates of θ vary over a square grid while the other two s
 values of a given θ. Every cell of the grid is scored by the mean total reward of the same few
 episodes (the same start states for every cell, drawn from one seed), so neighbouring cells
 differ only because their policies act differently, never because their episodes started
-elsewhere. Every cell plays your ``CartPoleLinearPolicy`` (TODO 1.1.1): ``hwlib.cartpole.run_episodes``
-plays all cells in one batch of gymnasium's vectorised CartPole where your ``__call__`` gives
-the actions of equation (1), and the others step by step with it; ``batched=False`` plays them
-all one by one, with the same rewards.
+elsewhere. Every cell plays your ``CartPoleLinearPolicy`` (TODO 1.1.1): the kit plays all cells in
+one batch of gymnasium's vectorised CartPole where your ``__call__`` gives the actions of equation
+(1), and the others step by step with it (``hwlib/machinery/episodes.py``); ``batched=False`` plays
+them all one by one, with the same rewards.
 
 | setting           | default      | meaning                                           |
 |-------------------|--------------|---------------------------------------------------|
@@ -22,7 +22,8 @@ Axes are 0-based indices into θ (0 is θ₁, the weight on the cart position).
 ``LandscapeExplorer`` is the notebook's widget: two dropdowns choose the axes, ``set_params``
 moves the slice to another θ (the slider panel's button calls ``from_panel``), and a status line
 says which θ it shows and where it came from. Its drawing is done by ``render_landscape``, a
-plain function, so the widget logic is tested without a browser.
+plain function, so the widget logic is tested without a browser; its redraws run one at a time
+and end on the latest request (``LatestOnly``).
 """
 
 from __future__ import annotations
@@ -37,8 +38,10 @@ import ipywidgets as widgets
 import numpy as np
 
 from hwlib import settings
-from hwlib._checks import as_float_array, check_count, check_params, check_path, check_positive_number, check_seed
-from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, _episode_seeds, _play_episodes
+from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, episode_seeds
+from hwlib.machinery.episodes import run_episodes
+from hwlib.machinery.latest_only import LatestOnly
+from hwlib.machinery.validation import as_float_array, check_count, check_params, check_path, check_positive_number, check_seed
 from hwlib.plots.landscape import AXIS_LABELS, AXIS_NAMES, figure_png, format_theta, new_landscape_figure, plot_reward_landscape
 
 GRID_SIZE = settings.LANDSCAPE_GRID_SIZE
@@ -148,16 +151,15 @@ def reward_slice(
     axes = check_axes(axes)
     grid_size = check_grid_size(grid_size)
     low, high = check_value_range(value_range)
-    num_episodes = check_count(num_episodes, "num_episodes")
-    seeds = _episode_seeds(num_episodes, check_seed(seed, "seed"))
+    seeds = episode_seeds(num_episodes, seed)
     if not isinstance(batched, bool):
         raise TypeError(f"batched must be True or False, got {batched!r}")
 
     values = np.linspace(low, high, grid_size)
     params = _slice_params(theta, axes, values)
     title = f"reward landscape ({grid_size} × {grid_size} cells × {num_episodes} episodes)" if progress else None
-    rewards = _play_episodes(np.repeat(params, num_episodes, axis=0), np.tile(seeds, len(params)), batched, title)
-    mean_rewards = rewards.reshape(grid_size, grid_size, num_episodes).mean(axis=2)
+    rewards = run_episodes(np.repeat(params, len(seeds), axis=0), np.tile(seeds, len(params)), batched, title)
+    mean_rewards = rewards.reshape(grid_size, grid_size, len(seeds)).mean(axis=2)
     return RewardSlice(theta, axes, values, mean_rewards, seeds)
 
 
@@ -254,9 +256,8 @@ class LandscapeExplorer:
         self.figure = new_landscape_figure()
         self.frame = None  # the LandscapeFrame on show
 
-        self._lock = threading.Lock()  # guards _theta, _pending and _drawing
-        self._pending = None  # the newest (theta, axes) request not yet drawn
-        self._drawing = False
+        self._lock = threading.Lock()  # guards _theta and received
+        self._redraws = LatestOnly(self._draw)
 
         options = [(label, index) for index, label in enumerate(AXIS_LABELS)]
         self.horizontal = widgets.Dropdown(options=options, value=axes[0], description="across")
@@ -305,35 +306,24 @@ class LandscapeExplorer:
         self.redraw()
 
     def redraw(self):
-        """Draw the slice for the current θ and axes; if a redraw is already running, leave this as
-        the request it draws next (replacing any older one still waiting) and return at once."""
+        """Draw the slice for the current θ and axes; if a redraw is already running, it draws this
+        request next (``LatestOnly``) and this call returns at once."""
+        self._redraws.request()
+
+    def _draw(self):
         with self._lock:
-            self._pending = (self._theta, self.axes)
-            if self._drawing:
-                return
-            self._drawing = True
+            theta = self._theta
+        if self.frame is not None:
+            self.caption.value = "drawing the slice…"
         try:
-            while True:
-                with self._lock:
-                    request, self._pending = self._pending, None
-                    if request is None:
-                        self._drawing = False
-                        return
-                if self.frame is not None:
-                    self.caption.value = "drawing the slice…"
-                theta, axes = request
-                frame = render_landscape(theta, axes, self.path, self.fd_step, self.figure, **self.slice_options)
-                with self._lock:
-                    superseded = self._pending is not None
-                if not superseded:  # else the newer request's picture follows right away
-                    self.frame = frame
-                    self.image.value = frame.png
-                    self.caption.value = frame.caption
+            frame = render_landscape(theta, self.axes, self.path, self.fd_step, self.figure, **self.slice_options)
         except Exception as error:
-            with self._lock:
-                self._drawing = False
             self.caption.value = "could not draw the slice: " + "<br>".join(html.escape(line) for line in str(error).splitlines())
             raise
+        if not self._redraws.pending:  # else the newer request's picture follows right away
+            self.frame = frame
+            self.image.value = frame.png
+            self.caption.value = frame.caption
 
     def _set_dropdowns(self, horizontal, vertical):
         for dropdown in (self.horizontal, self.vertical):

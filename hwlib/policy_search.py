@@ -13,9 +13,9 @@ episodes (``eval_params``, TODO 1.3.1); its gradient by central differences
 | ``LEARNING_RATE``       | TODO 1.3.3 | a rate with which training converges within 7 iterations |
 | start states            | shared within an iteration | every evaluation of iteration t uses the seeds of ``iteration_seed(seed, t)`` (common random numbers) |
 
-The notebook runs your ``train_cartpole_policy`` through ``hwlib/training.py`` (one run, and the
-learning-rate sweep's 160), which plays the episodes your code asks for many at a time: the same
-rewards, much sooner.
+The notebook runs your ``train_cartpole_policy`` through ``hwlib/training.py`` (one run, and every
+run of the learning-rate sweep), which plays the episodes your code asks for many at a time: the
+same rewards, much sooner.
 """
 
 from __future__ import annotations
@@ -25,10 +25,10 @@ from typing import NamedTuple
 import numpy as np
 
 from hwlib import settings
-from hwlib._checks import as_float_array, check_count, check_finite, check_params, check_positive_number, check_seed
-from hwlib._todo import TodoNotDone
 from hwlib.cartpole import MAX_EPISODE_REWARD, NUM_OBSERVATIONS, CartPoleLinearPolicy, run_policy
 from hwlib.finite_diff import scalar_finite_diff
+from hwlib.machinery.todos import TodoNotDone
+from hwlib.machinery.validation import as_float_array, check_count, check_finite, check_params, check_positive_number, check_seed
 
 SEEDS_PER_ITERATION = 1_000  # iteration t of a run with seed s evaluates on seeds from iteration_seed(s, t) on
 SEEDS_PER_RUN = 1_000_000

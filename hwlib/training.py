@@ -4,14 +4,14 @@
 and ``learning_rate_sweep(...)`` trains it from zeros with every learning rate of a grid and
 several seeds. Both show a progress bar with a time estimate in the notebook, stop within a
 second on Kernel → Interrupt, and play the episodes your code asks for many at a time
-(``hwlib/_batch.py``): every episode is still played from its own start state with your policy,
+(``hwlib/machinery/batch.py``): every episode is still played from its own start state with your policy,
 so the numbers are those your code gives one episode at a time (``batched=False`` does that).
 
 | what                    | how the kit plays it                                               |
 |-------------------------|--------------------------------------------------------------------|
 | ``eval_params`` calls   | a call runs twice: once to learn which episodes it asks for (any seeds: ``seed + k``, a generator, none), then for real, after they were played in one batch; once a run's calls have shown that their seeds follow from their arguments, only the real pass runs |
 | ``scalar_finite_diff``  | the same, so the 8 evaluations of one gradient are played in one batch |
-| the sweep's runs        | side by side, one at a time in a fixed order; what they all wait for is played together; on two cores, two halves of the runs take turns while a helper process plays part of the other half's batch (``hwlib/_turns.py``) |
+| the sweep's runs        | side by side, one at a time in a fixed order; what they all wait for is played together |
 | episodes without a seed | start where the next ``reset()`` of the run's own environment, seeded once with the run's seed, starts them, so a run gives the same numbers every time, batched or not |
 | a policy that is not equation (1) | played step by step with your ``__call__``: slow; if that would take more than ``max_minutes``, the kit says so, with its estimate, before it starts |
 """
@@ -23,10 +23,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hwlib import _batch, _engine, policy_search, settings
-from hwlib._checks import as_float_array, check_count, check_seed
-from hwlib._progress import Progress, format_seconds
-from hwlib.cartpole import CartPoleLinearPolicy, _play, make_env
+from hwlib import policy_search, settings
+from hwlib.cartpole import CartPoleLinearPolicy, make_env, play_episode
+from hwlib.machinery import batch, episodes
+from hwlib.machinery.progress import Progress, format_seconds
+from hwlib.machinery.validation import as_float_array, check_count, check_seed
 from hwlib.policy_search import check_learning_rate, converged_within
 
 # With a policy that follows equation (1), the sweep's episodes last this many steps on average
@@ -52,6 +53,26 @@ class SweepResult:
     def converged_fraction(self):
         """Fraction of seeds that converged within the deadline, one per learning rate."""
         return self.converged.mean(axis=1)
+
+    def advice(self):
+        """What the sweep says about choosing ``LEARNING_RATE`` (TODO 1.3.3), in a sentence or two."""
+        fractions = self.converged_fraction
+        if not fractions.any():
+            return ("No run converged with any of these learning rates. Before tuning the rate, check the direction "
+                    "of your steps: the gradient of equation (3), (f(x + h) - f(x - h)) / 2h (TODO 1.2.1), and the "
+                    "update of equation (4), which climbs it: theta + learning_rate * gradient (TODO 1.3.2).")
+        full = self.learning_rates[fractions == 1.0]
+        if full.size:
+            return (f"Every seed converged within {self.deadline} iterations with the learning rate "
+                    f"{_listed(full)}: set LEARNING_RATE in hwlib/settings.py to one of them (TODO 1.3.3).")
+        best = int(np.argmax(fractions))
+        return (f"No rate made every seed converge; {self.learning_rates[best]:g} did best ({fractions[best]:.0%}). "
+                "Try rates near it with learning_rate_sweep, then set LEARNING_RATE in hwlib/settings.py (TODO 1.3.3).")
+
+
+def _listed(rates):
+    shown = [f"{rate:g}" for rate in rates]
+    return shown[0] if len(shown) == 1 else ", ".join(shown[:-1]) + " or " + shown[-1]
 
 
 def run_training(
@@ -149,7 +170,7 @@ def _run(tasks, env_seeds, iterations, rollouts, batched, title, describe, max_m
         _refuse_hours_of_step_by_step(len(tasks), iterations, rollouts, describe, max_seconds)
     with Progress(title, 1000, None) as bar:
         watch = _Watch(iterations, bar if title else None, max_seconds, describe)
-        session = _batch.Session(batched, on_round=watch)
+        session = batch.Session(batched, on_round=watch)
         with session.replaying(policy_search, ("eval_params", "scalar_finite_diff"), counted="eval_params"):
             return session.run(tasks, env_seeds)
 
@@ -160,7 +181,7 @@ class _Watch:
 
     def __init__(self, iterations, progress, max_seconds, describe):
         self.iterations, self.progress, self.max_seconds, self.describe = iterations, progress, max_seconds, describe
-        self.expected = None if iterations is None else 1 + _batch.EVALUATIONS_PER_ITERATION * iterations
+        self.expected = None if iterations is None else 1 + batch.EVALUATIONS_PER_ITERATION * iterations
 
     def __call__(self, session):
         fraction = self.fraction_done(session)
@@ -183,7 +204,7 @@ class _Watch:
             return ""
         going = [run.evaluations for run in session.runs if run.state != "done"]
         evaluations = min(going) if going else self.expected
-        iteration = min(max(evaluations - 1, 0) // _batch.EVALUATIONS_PER_ITERATION, self.iterations)
+        iteration = min(max(evaluations - 1, 0) // batch.EVALUATIONS_PER_ITERATION, self.iterations)
         return f"iteration {iteration} of {self.iterations}"
 
     @staticmethod
@@ -202,11 +223,11 @@ class _Watch:
 def _refuse_hours_of_step_by_step(num_runs, iterations, rollouts, describe, max_seconds):
     """Before starting: if your ``__call__`` is not equation (1), every episode would be played step
     by step; say so, with the estimate, when that would take longer than ``max_seconds``."""
-    disagreement = _engine.first_disagreement(CartPoleLinearPolicy)  # raises TodoNotDone for the stub
+    disagreement = episodes.first_disagreement(CartPoleLinearPolicy)  # raises TodoNotDone for the stub
     if disagreement is None:
         return
-    episodes = num_runs * (1 + _batch.EVALUATIONS_PER_ITERATION * iterations) * rollouts
-    seconds = episodes * MEAN_EPISODE_STEPS * _seconds_per_step()
+    num_episodes = num_runs * (1 + batch.EVALUATIONS_PER_ITERATION * iterations) * rollouts
+    seconds = num_episodes * MEAN_EPISODE_STEPS * _seconds_per_step()
     if seconds <= max_seconds:
         return
     params, obs, action, expected = disagreement
@@ -214,7 +235,7 @@ def _refuse_hours_of_step_by_step(num_runs, iterations, rollouts, describe, max_
     got = f"raises {action!r}" if isinstance(action, BaseException) else f"returns {action!r}"
     raise TooSlow(
         f"{describe} would take about {format_seconds(seconds)}, so the kit did not start it: your "
-        f"CartPoleLinearPolicy.__call__ (TODO 1.1.1) does not follow equation (1), so each of its {episodes:,} "
+        f"CartPoleLinearPolicy.__call__ (TODO 1.1.1) does not follow equation (1), so each of its {num_episodes:,} "
         "episodes would be played step by step with it.",
         f"For example CartPoleLinearPolicy({np.round(params, 3).tolist()})([{shown}]) {got}; equation (1) gives "
         f"{expected}. Fix 1.1.1, or pass max_minutes=None to run it anyway.")
@@ -226,7 +247,7 @@ def _seconds_per_step():
     generator = np.random.default_rng(0)
     while steps < 300:
         try:
-            steps += len(_play(CartPoleLinearPolicy(generator.uniform(-1, 1, 4)), int(generator.integers(1000)), env).actions)
+            steps += play_episode(CartPoleLinearPolicy(generator.uniform(-1, 1, 4)), int(generator.integers(1000)), env).num_steps
         except Exception:  # noqa: BLE001 - a policy that fails at once costs little; count its try as a step
             steps += 1
     env.close()

@@ -8,39 +8,44 @@ values in and show what comes back, so the panel's logic is tested without a bro
 **The panel ends on what was clicked.** The browser sends each control's changes on its own
 channel and holds a slider's next value while one is in flight, so a held value could land
 after a preset and overwrite half of it. The order is therefore kept in the browser, by a small
-front-end part (``PanelControls``, an anywidget, in ``hwlib/_panel_parts.py``): it sets the
-sliders to a preset there and sends the whole state (θ, seed, time step, numbered) after every
-action on one channel, so the last state the kernel draws is the state of the last action. A
+front-end part (``PanelControls``, an anywidget, in ``hwlib/machinery/panel_controls.py``): it
+sets the sliders to a preset there and sends the whole state (θ, seed, time step, numbered) after
+every action on one channel, so the last state the kernel draws is the state of the last action. A
 change made from Python (``set_params``, a slider's value set in code) is drawn as before;
 without the front-end part the panel draws the controls' values.
 
-Redraws never overlap and never go stale: a change that arrives while a frame is being drawn
-(from another thread) is only noted, and the drawing thread draws once more, with the latest
-state, before it stops. A new episode costs about 60 ms (play it, draw its curves); a new time
-step only redraws the cursor and the cart (about 10 ms, ``EpisodeView.frame_png``). While ▶ Play
-runs, the browser draws the steps itself: the kernel sends the episode's picture without the
-moving parts and where they go at every step (``EpisodeView.overlay``) once, and the browser draws
-the cursor and the cart over it, 20 frames per second whatever the kernel is doing; when the play
-stops, the kernel's own frame of that step replaces it.
+Redraws never overlap and never go stale (``LatestOnly``): a change that arrives while a frame is
+being drawn is only noted, and the drawing thread draws once more, with the latest state, before it
+stops. A new episode costs about 60 ms (play it, draw its curves); a new time step only redraws the
+cursor and the cart (about 10 ms, ``EpisodeView.frame_png``). While ▶ Play runs, the browser draws
+the steps itself: the kernel sends the episode's picture without the moving parts and where they go
+at every step (``EpisodeView.overlay``) once, and the browser draws the cursor and the cart over it,
+20 frames per second whatever the kernel is doing; when the play stops, the kernel's own frame of
+that step replaces it.
 
 **The layout never moves.** Every part has a fixed size: the status line (reward and why the episode
 ended, or what went wrong) has two lines and clips the rest (its tooltip holds all of it).
 
-If the policy raises ``NotImplementedError`` with a ``todo`` attribute (``hwlib._todo.TodoNotDone``,
-"TODO 1.1.1 is not done yet"), the status line says which TODO and what to do, in place of the
-reward; the panel works as soon as the TODO is done and the cell is run again.
+**Only θ's direction matters**: ``c θ`` with ``c > 0`` pushes the cart the same way as ``θ`` in every
+state. When a change leaves θ pointing where it pointed (θ₃ moved alone while the others are 0,
+say), the status line says so under the reward, so the unchanged episode does not look frozen.
+
+If the policy raises ``NotImplementedError`` with a ``todo`` attribute (``TodoNotDone``, "TODO 1.1.1
+is not done yet"), the status line says which TODO and what to do, in place of the reward; the
+panel works as soon as the TODO is done and the cell is run again.
 """
 
 from __future__ import annotations
 
 import html
 import math
+import re
 import threading
 from dataclasses import dataclass, replace
 
 import ipywidgets as widgets
+import numpy as np
 
-from hwlib._checks import check_params, check_seed
 from hwlib.cartpole import (
     ALWAYS_LEFT_PARAMS,
     ALWAYS_RIGHT_PARAMS,
@@ -51,37 +56,119 @@ from hwlib.cartpole import (
     Episode,
     play_episode,
 )
-from hwlib._panel_parts import (  # the panel's texts, the sliders' grid, the front-end part
-    LANDSCAPE_BUTTON_LABEL,
-    LANDSCAPE_TOOLTIP_CONNECTED,
-    OBSERVATION_UNITS,
-    PLAY_TOOLTIP,
-    PRESET_TOOLTIPS,
-    REWARD_TOOLTIP,
-    SEED_TOOLTIP,
-    SLIDER_LABELS,
-    SLIDER_MAX,
-    SLIDER_MIN,
-    SLIDER_STEP,
-    SLIDER_TOOLTIP,
+from hwlib.machinery.latest_only import LatestOnly
+from hwlib.machinery.panel_controls import (
+    LANDSCAPE_BUTTON_LABEL,  # noqa: F401 - the button's label, read with the panel's other texts
     STATUS_LINES,
-    STEP_TOOLTIP,
-    SUBSCRIPTS,
-    grid_params,
-    LatestOnly,
     PanelControls,
-    PanelState,
-    parse_frontend_state,
-    slider_grid_value,
-    todo_message,
 )
+from hwlib.machinery.validation import check_params, check_seed
 from hwlib.plots.cartpole import EpisodeView, how_it_ended, message_png
+
+SLIDER_MIN, SLIDER_MAX, SLIDER_STEP = -2.0, 2.0, 0.01
+OBSERVATION_UNITS = ("m", "m/s", "rad", "rad/s")
+SUBSCRIPTS = "₁₂₃₄"
+SLIDER_LABELS = tuple(
+    f"θ{SUBSCRIPTS[index]} · {name} [{unit}]" for index, (name, unit) in enumerate(zip(OBSERVATION_NAMES, OBSERVATION_UNITS))
+)
+
+
+def slider_grid_value(value):
+    """``value`` moved to the sliders' grid, computed exactly as the browser's slider does it.
+
+    ipywidgets 8 draws a FloatSlider with noUiSlider, which snaps a value to the grid in percent
+    of the range and sends the snapped value back to the kernel whenever it differs from the
+    model's. Values this function returns are left as they are (they are the snapped values), so
+    displaying them sends nothing back. ``value`` must lie within the sliders' range.
+    """
+    span = SLIDER_MAX - SLIDER_MIN
+    percent = (value - SLIDER_MIN) * 100 / span
+    percent_step = SLIDER_STEP * 100 / span
+    snapped = math.floor(percent / percent_step + 0.5) * percent_step  # JavaScript's Math.round
+    if snapped >= 100:
+        return SLIDER_MAX
+    return snapped * span / 100 + SLIDER_MIN
+
+
+def grid_params(params, name="params"):
+    """Four weights within the sliders' range, on the sliders' grid, as a tuple of floats."""
+    params = check_params(params, name)
+    if params.min() < SLIDER_MIN or params.max() > SLIDER_MAX:
+        raise ValueError(f"{name} must lie within the sliders' range [{SLIDER_MIN:g}, {SLIDER_MAX:g}], got {params.tolist()}")
+    return tuple(slider_grid_value(float(value)) for value in params)
+
+
+PRESET_TOOLTIPS = {
+    "always left": "θ = (0, 0, 0, 0): θ·s is never negative, so the cart is pushed left at every step",
+    "always right": "θ = (0, −1, 0, 1): once the cart is pushed right, θ·s only gets more negative, so it keeps being pushed right",
+}
+SLIDER_TOOLTIP = (
+    "Weight θ{sub} on the {name} [{unit}]. The policy pushes the cart right when "
+    "θ₁·x + θ₂·ẋ + θ₃·φ + θ₄·φ̇ < 0, otherwise left. Drag, or click the handle and use the arrow keys (0.01 per press)."
+)
+SEED_TOOLTIP = "Seed of the episode's start state, reset(seed=...): the same seed always gives the same start"
+STEP_TOOLTIP = "The time step the cart is drawn at (the grey line in the plots). Drag to move through the episode, or press ▶"
+PLAY_TOOLTIP = "Play the episode: moves the time step from 0 to the end (press again to pause)"
+REWARD_TOOLTIP = f"Total reward of the episode: +1 for every step the pole stays up, {MAX_EPISODE_REWARD} at most"
+LANDSCAPE_TOOLTIP_CONNECTED = "Mark the current θ in the reward landscape view"
+
+
+_ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def todo_message(error):
+    """The lines that say which TODO is not done yet, if ``error`` says so; otherwise None.
+
+    ``error`` says so when it is a ``NotImplementedError`` with a ``todo`` attribute (the kit's
+    ``TodoNotDone``). Its short message (``_render_traceback_``, what IPython shows) is used when
+    it has one, else "TODO x.y.z is not done yet: <its message>".
+    """
+    todo = getattr(error, "todo", None)
+    if not isinstance(error, NotImplementedError) or not todo:
+        return None
+    render = getattr(error, "_render_traceback_", None)
+    if callable(render):
+        try:
+            lines = [_ANSI_ESCAPE.sub("", str(line)).rstrip() for line in render()]
+        except Exception:  # noqa: BLE001 (a broken message must not break the panel: use the plain one)
+            lines = []
+        lines = [line for text in lines for line in text.splitlines() if line.strip()]
+        if lines:
+            return lines
+    detail = str(error).strip()
+    return [f"TODO {todo} is not done yet" + (f": {detail}" if detail and detail != str(todo) else "")]
+
+
+@dataclass(frozen=True)
+class PanelState:
+    """What the panel shows: the weights, the seed, and the time step (None: the episode's end)."""
+
+    params: tuple
+    seed: int
+    step: int | None = None
+    seq: int = 0  # the browser's number for this state (0: a change made in the kernel)
+
+
+def parse_frontend_state(state):
+    """The ``PanelState`` the browser sent, checked; ValueError if it is not one."""
+    if not isinstance(state, dict):
+        raise ValueError(f"the panel's state must be a dict, got {type(state).__name__}")
+    params = grid_params(state.get("params"), "state['params']")
+    seed = check_seed(state.get("seed"), "state['seed']")
+    if seed >= SEED_BOUND:
+        raise ValueError(f"state['seed'] must be below {SEED_BOUND}, got {seed}")
+    step, seq = state.get("step"), state.get("seq", 0)
+    if step is not None and (isinstance(step, bool) or not isinstance(step, int) or step < 0):
+        raise ValueError(f"state['step'] must be None or a non-negative integer, got {step!r}")
+    if isinstance(seq, bool) or not isinstance(seq, int):
+        raise ValueError(f"state['seq'] must be an integer, got {seq!r}")
+    return PanelState(params, seed, step, seq)
+
 
 DEFAULT_SEED = 0
 PLAY_INTERVAL_MS = 50  # one animation frame every 0.05 s (20 frames per second) ...
 PLAY_FRAMES = 250  # ... and at most 250 frames per episode (a 500-step episode plays in 12.5 s)
 FIGURE_DPI, FIGURE_WIDTH, FIGURE_HEIGHT = 80, 9.0, 4.4  # the panel's picture: 720 x 352 px
-
 
 
 # The two presets: neither balances the pole (finding weights that do is handout 1.1.2).
@@ -90,7 +177,6 @@ PRESETS = {
     "always right": grid_params(ALWAYS_RIGHT_PARAMS),
 }
 DEFAULT_PARAMS = PRESETS["always left"]  # θ = 0: the panel starts from a policy that fails quickly
-
 
 
 @dataclass(frozen=True)
@@ -110,6 +196,20 @@ def reward_text(episode):
     reward = int(episode.total_reward)
     reason = "the maximum" if reward >= MAX_EPISODE_REWARD else how_it_ended(episode)
     return f"Total reward: {reward} ({reason})"
+
+
+def same_direction(before, after):
+    """Whether ``after`` is ``before`` times a number > 0 (and not ``before`` itself): the same policy,
+    since only θ's direction matters. Both are 4 weights; a zero vector has no direction."""
+    before, after = np.asarray(before, dtype=np.float64), np.asarray(after, dtype=np.float64)
+    if not before.any() or not after.any() or np.array_equal(before, after):
+        return False
+    scale = np.abs(before).max() * np.abs(after).max()
+    parallel = np.abs(np.outer(before, after) - np.outer(after, before)).max() <= 1e-12 * scale
+    return bool(parallel and np.dot(before, after) > 0)
+
+
+DIRECTION_NOTE = "θ points as before: only its direction matters (c·θ acts as θ for any c > 0), so the episode is the same."
 
 
 def simulate_episode(params, seed):
@@ -161,6 +261,8 @@ class SliderPanel:
         self._state_lock = threading.Lock()
         self._state = PanelState(tuple(params), seed)
         self._frontend = False  # True once the browser's part speaks: it then sends the state
+        self._drawn_params = None  # the weights of the last episode drawn
+        self._direction_note = ""  # the line under the reward when they point where the weights before them did
         self._overlay_key = None  # the (params, seed) whose overlay the browser has for ▶ Play
 
         self.param_sliders = [
@@ -251,10 +353,6 @@ class SliderPanel:
         if name not in PRESETS:
             raise ValueError(f"name must be one of the presets {list(PRESETS)}, got {name!r}")
         self.set_params(PRESETS[name])
-
-    def refresh(self):
-        """Redraw for the controls as they are now (from any thread; see ``LatestOnly``)."""
-        self._redraws.request()
 
     def on_send_params(self, callback):
         """Call ``callback(params)`` (a tuple of 4 floats) whenever "Show θ in the landscape" is clicked.
@@ -354,8 +452,14 @@ class SliderPanel:
                 self.step_slider.value = step
             finally:
                 self._writing.active = False
-        self.reward_label.value = f"<b>{html.escape(frame.reward_text)}</b>"
-        self.reward_label.tooltip = REWARD_TOOLTIP
+        note = ""
+        if self._drawn_params is not None and same_direction(self._drawn_params, params):
+            note = f"<br>{html.escape(DIRECTION_NOTE)}"
+        if self._drawn_params != params:
+            self._drawn_params = params
+            self._direction_note = note
+        self.reward_label.value = f"<b>{html.escape(frame.reward_text)}</b>{self._direction_note}"
+        self.reward_label.tooltip = REWARD_TOOLTIP + (f"\n{DIRECTION_NOTE}" if self._direction_note else "")
         self.image.value = frame.png
         if self.play.playing and self._overlay_key != (params, seed):
             # ▶ plays: the browser draws the steps over the episode's picture, with this

@@ -66,14 +66,12 @@ def not_done_in_text(text):
 
 
 def where(todo):
-    """"scalar_finite_diff in hwlib/finite_diff.py" from the TODO table's "file: function" (its
-    library part where it names a notebook cell too)."""
-    parts = [part.strip() for part in TODO_BY_ID[todo].code.split(";")]
-    code = next((part for part in parts if part.partition(": ")[0].endswith(".py")), parts[0])
-    file, _, what = code.partition(": ")
+    """"scalar_finite_diff in hwlib/finite_diff.py": where TODO ``todo``'s code goes (``Todo.where``:
+    its library part where it names a notebook cell too)."""
+    file, what = TODO_BY_ID[todo].where
     if file.endswith(".ipynb"):
         return f"{what} of {file}"
-    return f"{what} in {file}" if what else code
+    return f"{what} in {file}" if what else file
 
 
 def untouched_todos(kit=KIT_ROOT):

@@ -6,7 +6,7 @@ markers (the grader reads the student's code from between them):
 * in a function: the hint as a ``# TODO x.y.z: <hint>`` comment, the block's ``### STUB:`` lines,
   and ``raise TodoNotDone("x.y.z")`` (unless a STUB line raises already), so an untouched TODO
   says which TODO it is where it is called instead of returning zeros. ``TodoNotDone`` is the
-  kit's "not done yet" exception (``hwlib/_todo.py``); a module with such a block imports it. In a
+  kit's "not done yet" exception (``hwlib/machinery/todos.py``); a module with such a block imports it. In a
   kit without that module the stub is the STUB lines or ``pass``, as before;
 * at module level (``settings.LEARNING_RATE``): ``NAME = None  # TODO x.y.z: <hint>`` for every
   name the block assigns, so the module still imports.
@@ -23,7 +23,7 @@ from hwtools import markers
 from instructor.kit import ReleaseError, find_blocks
 
 NOT_DONE = "TodoNotDone"  # the exception an untouched function stub raises
-NOT_DONE_MODULE = "hwlib/_todo.py"  # where the kit defines it; with this file, every function stub raises it
+NOT_DONE_MODULE = "hwlib/machinery/todos.py"  # where the kit defines it; with this file, every function stub raises it
 
 # One-line hints per TODO, used where a block has no "### HINT:" line of its own.
 HINTS = {
@@ -66,7 +66,7 @@ def transform_python(text, path, keep=frozenset(), replace=None, require_not_don
     if require_not_done and not not_done and any(block.indent for block in blocks):
         first = next(block for block in blocks if block.indent)
         raise ReleaseError(f"{path}:{first.begin + 1}: the stub of TODO {first.todo} raises {NOT_DONE}; import it in "
-                           f"this module (from hwlib._todo import {NOT_DONE})")
+                           f"this module (from hwlib.machinery.todos import {NOT_DONE})")
     result = "\n".join(replace_blocks(lines, blocks, keep, replace, lambda block: python_stub(block, lines, path, not_done),
                                       wrap=todo_markers))
     try:

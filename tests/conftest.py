@@ -5,7 +5,8 @@ import sys
 import numpy as np
 import pytest
 
-from hwlib.cartpole import run_episodes, sample_random_params
+from hwlib.cartpole import sample_random_params
+from hwlib.machinery.episodes import run_episodes
 
 BALANCING_SEEDS = tuple(range(5))
 

@@ -2,9 +2,9 @@
 
 ``day_one_edition(out)`` builds the student edition (``instructor.release``) and makes sure every
 untouched TODO raises ``TodoNotDone`` when it runs. The release tool is to write such stubs
-itself (``raise TodoNotDone("1.2.1")``, ``hwlib/_todo.py``); where it still writes ``pass`` or a
+itself (``raise TodoNotDone("1.2.1")``, ``hwlib/machinery/todos.py``); where it still writes ``pass`` or a
 bare ``raise NotImplementedError()``, this module writes those stubs in the built copy, and a
-stand-in ``hwlib/_todo.py`` if the kit has none. Once the release tool does it, nothing is
+stand-in ``hwlib/machinery/todos.py`` if the kit has none. Once the release tool does it, nothing is
 rewritten here: the tests then look at the real stubs.
 
 ``student_python(folder)`` makes a Python like a student's, which has the kit's packages but not the
@@ -57,13 +57,13 @@ def raising_stubs(kit):
     returns the files changed (none once the release tool writes such stubs)."""
     kit = Path(kit)
     changed = []
-    todo_module = kit / "hwlib" / "_todo.py"
+    todo_module = kit / "hwlib" / "machinery" / "todos.py"
     for path in sorted((kit / "hwlib").rglob("*.py")):
         text = path.read_text(encoding="utf-8")
-        new = _PASS_STUB.sub(lambda m: f'{m["indent"]}{m["hint"]}\n{m["indent"]}from hwlib._todo import TodoNotDone\n'
+        new = _PASS_STUB.sub(lambda m: f'{m["indent"]}{m["hint"]}\n{m["indent"]}from hwlib.machinery.todos import TodoNotDone\n'
                                        f'{m["indent"]}raise TodoNotDone("{m["todo"]}")', text)
         if path.name == "policy_search.py":  # reading LEARNING_RATE while it is None is TODO 1.3.3 not done
-            new = _LEARNING_RATE_NOT_SET.sub('from hwlib._todo import TodoNotDone\n        raise TodoNotDone("1.3.3")\n', new)
+            new = _LEARNING_RATE_NOT_SET.sub('from hwlib.machinery.todos import TodoNotDone\n        raise TodoNotDone("1.3.3")\n', new)
         if new != text:
             path.write_text(new, encoding="utf-8")
             changed.append(path.relative_to(kit).as_posix())
@@ -75,7 +75,7 @@ def raising_stubs(kit):
             found = re.search(r"### BEGIN TODO ([\d.]+)", source)
             if cell["cell_type"] == "code" and found and "raise NotImplementedError()" in source:
                 source = source.replace("raise NotImplementedError()",
-                                        f'from hwlib._todo import TodoNotDone\nraise TodoNotDone("{found[1]}")')
+                                        f'from hwlib.machinery.todos import TodoNotDone\nraise TodoNotDone("{found[1]}")')
                 cell["source"] = source.splitlines(keepends=True)
                 touched = True
         if touched:
@@ -83,7 +83,7 @@ def raising_stubs(kit):
             changed.append(path.relative_to(kit).as_posix())
     if changed and not todo_module.exists():
         todo_module.write_text(STAND_IN_TODO, encoding="utf-8")
-        changed.append("hwlib/_todo.py")
+        changed.append("hwlib/machinery/todos.py")
     return changed
 
 

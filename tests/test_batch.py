@@ -1,14 +1,19 @@
-"""The kit's batch engine (hwlib/_batch.py, hwlib/training.py): faster, never different, and it stops when asked."""
+"""The kit's batch engine (hwlib/machinery/batch.py, hwlib/training.py): faster, never different, and it stops when asked."""
 
 import _thread
+import signal
 import threading
 import time
 
 import numpy as np
 import pytest
 
-from hwlib import CartPoleLinearPolicy, TodoNotDone, _batch, _engine, policy_search, run_policy, settings
-from hwlib.cartpole import make_env, play_episode, random_policy_rewards, run_episodes
+from hwlib import CartPoleLinearPolicy, TodoNotDone, policy_search, settings
+from hwlib import cartpole
+from hwlib.cartpole import make_env, play_episode, random_policy_rewards
+from hwlib.machinery import batch as _batch
+from hwlib.machinery import episodes as _episodes
+from hwlib.machinery.episodes import run_episodes
 from hwlib.training import TooSlow, learning_rate_sweep, run_training
 
 PARAMS = [0.1, -0.3, -0.9, -0.2]
@@ -19,8 +24,16 @@ def plain_mean(policy, seeds):
 
 
 def session_replaying(**options):
+    """A session, and the context in which its runs' ``policy_search.run_policy``, ``eval_params`` and
+    ``scalar_finite_diff`` are the session's (what ``hwlib/training.py`` does)."""
     session = _batch.Session(**options)
     return session, session.replaying(policy_search, ("eval_params", "scalar_finite_diff"), counted="eval_params")
+
+
+def run_policy(policy, seed=None):
+    """``run_policy`` as the code in hwlib/policy_search.py finds it: by the module's name, where the kit's
+    runs put the session's in its place."""
+    return policy_search.run_policy(policy, seed=seed)
 
 
 # Three ways a student writes eval_params, all correct: the docstring's seeds, seeds from a
@@ -97,24 +110,18 @@ def test_a_training_run_needs_two_batches_per_iteration():
         [run] = session.run([lambda: policy_search.train_cartpole_policy(3, 5, 0.001, seed=2)])
     assert session.rounds == 1 + 2 * 3  # g(θ₀); then per iteration the 8 neighbours together, and g(θ_t+1)
     assert session.episodes_played == (1 + 9 * 3) * 5
-    with _no_route():
-        plain = policy_search.train_cartpole_policy(3, 5, 0.001, seed=2)
+    plain = policy_search.train_cartpole_policy(3, 5, 0.001, seed=2)  # outside a kit run: the plain loop
     np.testing.assert_array_equal(run.rewards, plain.rewards)
-
-
-class _no_route:
-    def __enter__(self):
-        self.previous = _engine.set_route(None)
-
-    def __exit__(self, *exc):
-        _engine.set_route(self.previous)
+    assert policy_search.run_policy is cartpole.run_policy  # the module's own again, after the run
 
 
 def test_code_that_asks_for_episodes_one_at_a_time_still_gets_the_right_rewards():
     policy = CartPoleLinearPolicy([0.2, 0.1, -1.0, -0.3])
-    session = _batch.Session()
-    rewards = session.run([lambda seed=seed: run_policy(policy, seed=seed) for seed in (3, 99, 3, 7)])
+    session, replaying = session_replaying()
+    with replaying:
+        rewards = session.run([lambda seed=seed: run_policy(policy, seed=seed) for seed in (3, 99, 3, 7)])
     assert rewards == [play_episode(policy, seed=seed).total_reward for seed in (3, 99, 3, 7)]
+    assert session.episodes_played == 3  # through the session: seed 3's episode played once
 
 
 class MirroredPolicy(CartPoleLinearPolicy):
@@ -144,9 +151,10 @@ class FarOffPolicy(CartPoleLinearPolicy):
 def test_a_policy_that_is_not_equation_one_is_played_with_its_own_call(policy_class):
     params = [0.0, 0.0, 0.0, 0.0] if policy_class is TieBreakingPolicy else [0.3, -0.2, 0.8, 0.1]
     policy = policy_class(params)
-    assert not _engine.agrees_with_equation_one(policy, np.array(params, dtype=float))
-    session = _batch.Session()
-    batched = session.run([lambda seed=seed: run_policy(policy, seed=seed) for seed in range(4)])
+    assert not _episodes.agrees_with_equation_one(policy, np.array(params, dtype=float))
+    session, replaying = session_replaying()
+    with replaying:
+        batched = session.run([lambda seed=seed: run_policy(policy, seed=seed) for seed in range(4)])
     assert batched == [play_episode(policy, seed=seed).total_reward for seed in range(4)]
     assert session.step_by_step == 4
 
@@ -166,8 +174,9 @@ def test_an_error_in_the_policy_reaches_the_caller():
         def __call__(self, obs):
             raise RuntimeError("broken policy")
 
-    with pytest.raises(RuntimeError, match="broken policy"):
-        _batch.Session().run([lambda: run_policy(Broken([0.0, 0.0, 0.0, 0.0]), seed=1)])
+    session, replaying = session_replaying()
+    with pytest.raises(RuntimeError, match="broken policy"), replaying:
+        session.run([lambda: run_policy(Broken([0.0, 0.0, 0.0, 0.0]), seed=1)])
 
 
 def stub_call(self, obs):
@@ -205,8 +214,11 @@ def test_a_todo_not_done_in_one_run_of_the_sweep_stops_them_all(monkeypatch):
 
 
 def test_many_runs_asking_for_the_same_episodes_all_get_them():
-    results = _batch.Session().run([lambda: policy_search.eval_params(PARAMS, num_rollouts=5, seed=2)] * 12)
+    session, replaying = session_replaying()
+    with replaying:
+        results = session.run([lambda: policy_search.eval_params(PARAMS, num_rollouts=5, seed=2)] * 12)
     assert results == [plain_mean(CartPoleLinearPolicy(PARAMS), range(2, 7))] * 12
+    assert session.episodes_played == 5
 
 
 def test_runs_keep_their_order_and_the_first_error_is_raised():
@@ -220,39 +232,87 @@ def test_runs_keep_their_order_and_the_first_error_is_raised():
         _batch.Session().run([lambda: 1, fails])
 
 
-def interrupt_the_sweep(after_seconds):
-    """Kernel → Interrupt is a KeyboardInterrupt in the main thread: send one into the notebook's sweep."""
-    timer = threading.Timer(after_seconds, _thread.interrupt_main)
-    timer.start()
+@pytest.fixture
+def kernel_interrupt():
+    """``interrupt()``: Kernel → Interrupt, a KeyboardInterrupt in the main thread, sent from another
+    thread. A test run started in a shell's background ignores SIGINT, and ``interrupt_main`` then
+    does nothing: the kernel's own handler, Python's default, is in place during the test."""
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield _thread.interrupt_main
+    signal.signal(signal.SIGINT, previous)
+
+
+def interrupt_when(event, interrupt):
+    """A thread that interrupts the main thread once ``event`` is set (within two minutes, or never);
+    call its ``cancel()`` when the work it interrupts is over."""
+    cancelled = threading.Event()
+
+    def watch():
+        if event.wait(120) and not cancelled.is_set():
+            interrupt()
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.cancel = cancelled.set
+    watcher.start()
+    return watcher
+
+
+def run_threads_left(within=5.0):
+    """The kit's run threads still alive once they had ``within`` seconds to end (a loaded machine is slow)."""
+    deadline = time.monotonic() + within
+    while True:
+        left = [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.05)
+
+
+def interrupt_the_sweep(interrupt, monkeypatch, after_rounds=2, **options):
+    """Send Kernel → Interrupt into the notebook's sweep once it has played ``after_rounds`` batches."""
+    rounds, original = [], _batch.Session.play_round
+    playing = threading.Event()
+
+    def counting(self):
+        rounds.append(1)
+        if len(rounds) >= after_rounds:
+            playing.set()
+        return original(self)
+
+    monkeypatch.setattr(_batch.Session, "play_round", counting)
+    watcher = interrupt_when(playing, interrupt)
     try:
         with pytest.raises(KeyboardInterrupt):
-            learning_rate_sweep(settings.SWEEP_LEARNING_RATES, num_seeds=20, progress=False, max_minutes=None)
+            learning_rate_sweep(settings.SWEEP_LEARNING_RATES, num_seeds=settings.SWEEP_NUM_SEEDS, progress=False,
+                                max_minutes=None, **options)
     finally:
-        timer.cancel()
+        watcher.cancel()
+    assert playing.is_set()
 
 
-def test_kernel_interrupt_stops_the_sweep_and_leaves_no_thread_behind():
-    started = time.monotonic()
-    interrupt_the_sweep(1.0)
-    assert time.monotonic() - started < 60  # it stopped (the sweep itself takes longer); benchmarks time how soon
-    assert not [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+@pytest.mark.timeout(300)
+def test_kernel_interrupt_stops_the_sweep_and_leaves_no_thread_behind(kernel_interrupt, monkeypatch):
+    interrupt_the_sweep(kernel_interrupt, monkeypatch)  # the benchmark times how soon it stops
+    assert not run_threads_left()
     assert policy_search.eval_params.__module__ == "hwlib.policy_search" and not hasattr(policy_search.eval_params, "__wrapped__")
+    assert policy_search.run_policy is cartpole.run_policy
 
 
-def test_interrupt_stops_a_run_busy_in_its_own_code():
+@pytest.mark.timeout(300)
+def test_interrupt_stops_a_run_busy_in_its_own_code(kernel_interrupt):
+    spinning = threading.Event()
+
     def busy():
+        spinning.set()
         while True:
             sum(range(1000))
 
-    timer = threading.Timer(0.5, _thread.interrupt_main)
-    timer.start()
+    watcher = interrupt_when(spinning, kernel_interrupt)
     try:
         with pytest.raises(KeyboardInterrupt):
             _batch.Session().run([busy, busy])
     finally:
-        timer.cancel()
-    time.sleep(0.2)
-    assert not [thread for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
+        watcher.cancel()
+    assert not run_threads_left()
 
 
 def test_a_sweep_that_would_take_hours_says_so_before_it_starts(monkeypatch):
@@ -326,8 +386,7 @@ def test_a_run_whose_seeds_follow_its_arguments_is_foreseen_not_recorded_twice(m
     evaluations = 1 + 9 * 4
     assert student.calls < 1.5 * evaluations  # recorded then replayed every time would be 2x
     monkeypatch.setattr(policy_search, "eval_params", STYLES[style])
-    with _no_route():
-        plain = policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)
+    plain = policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)
     np.testing.assert_array_equal(run.rewards, plain.rewards)
 
 
@@ -344,8 +403,7 @@ def test_a_wrong_foresight_starts_the_call_again_and_changes_no_number(monkeypat
     with replaying:
         [run] = session.run([lambda: policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)])
     assert session.runs[0].memory.refuted
-    with _no_route():
-        plain = policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)
+    plain = policy_search.train_cartpole_policy(4, 5, 0.001, seed=3)
     np.testing.assert_array_equal(run.rewards, plain.rewards)
     np.testing.assert_array_equal(run.params_history, plain.params_history)
 
@@ -397,7 +455,7 @@ def test_unseeded_starts_a_call_did_not_use_go_back_to_the_runs_env(monkeypatch)
 def test_each_unseeded_start_is_drawn_from_the_runs_env_once(monkeypatch, in_blocks):
     from gymnasium.envs.classic_control.cartpole import CartPoleEnv
 
-    from hwlib import _replay
+    from hwlib.machinery import replay as _replay
 
     resets, reset = [], CartPoleEnv.reset
     monkeypatch.setattr(CartPoleEnv, "reset", lambda self, *a, **k: resets.append(1) or reset(self, *a, **k))
@@ -413,120 +471,10 @@ def test_each_unseeded_start_is_drawn_from_the_runs_env_once(monkeypatch, in_blo
     np.testing.assert_array_equal(rewards, run_training(3, 5, 0.001, seed=3, batched=False, progress=False).rewards)
 
 
-# --- the helper process that plays half of the sweep's batches (hwlib/_physics.py, hwlib/_turns.py) ---
-
-def helper_processes():
-    """This test run's live helper processes (hwlib/_physics.py run as a script)."""
-    from process_watch import live_processes
-
-    return live_processes(lambda cmdline: b"hwlib/_physics.py" in cmdline.replace(b"\\", b"/"), settle=2.0)
-
-
-def test_the_sweep_gives_the_same_numbers_with_the_helper_without_it_and_when_it_fails(monkeypatch):
-    from hwlib import _physics, _turns
-
-    monkeypatch.setattr(_turns, "MIN_HELPER_BATCH", 1)  # a small sweep's batches go to the helper too
-    rates, options = [0.0005, 0.001, 0.002], {"num_seeds": 4, "num_training_iterations": 5, "progress": False}
-    with_helper = learning_rate_sweep(rates, **options).rewards
-    monkeypatch.setattr(_turns, "usable_cores", lambda: 1)
-    in_turn = learning_rate_sweep(rates, **options).rewards
-    monkeypatch.setattr(_turns, "usable_cores", lambda: 2)
-    calls = []
-
-    def fails_on_the_third_batch(self):
-        calls.append(1)
-        if len(calls) == 3:
-            self.process.kill()  # it dies in the middle of the sweep
-            self.process.wait()
-        return original_collect(self)
-
-    original_collect = _physics.HelperProcess.collect
-    monkeypatch.setattr(_physics.HelperProcess, "collect", fails_on_the_third_batch)
-    helper_died = learning_rate_sweep(rates, **options).rewards
-    assert len(calls) == 3  # after it died, every batch was played in this process
-    np.testing.assert_array_equal(with_helper, in_turn)
-    np.testing.assert_array_equal(with_helper, helper_died)
-    assert not helper_processes()
-
-
-def test_a_helper_that_cannot_start_leaves_the_sweep_to_this_process(monkeypatch):
-    from hwlib import _physics, _turns
-
-    monkeypatch.setattr(_turns, "MIN_HELPER_BATCH", 1)
-    monkeypatch.setattr(_physics.sys, "executable", "/nonexistent/python")
-    sweep = learning_rate_sweep([0.001], num_seeds=3, num_training_iterations=3, progress=False)
-    monkeypatch.undo()
-    for seed in range(3):
-        np.testing.assert_array_equal(sweep.rewards[0, seed],
-                                      run_training(3, learning_rate=0.001, seed=seed, batched=False, progress=False).rewards)
-
-
-def test_no_helper_process_outlives_a_sweep_an_error_or_an_interrupt(monkeypatch):
-    from hwlib import _turns
-
-    monkeypatch.setattr(_turns, "MIN_HELPER_BATCH", 1)
-    started = []
-    original = _turns._Helper.submit
-
-    def noting(self, params, starts):
-        sent = original(self, params, starts)
-        started.append(self.process.process.pid)
-        return sent
-
-    monkeypatch.setattr(_turns._Helper, "submit", noting)
-    learning_rate_sweep([0.001, 0.002], num_seeds=3, num_training_iterations=3, progress=False)
-    assert started and not helper_processes()
-    monkeypatch.setattr(policy_search, "eval_params", stub_eval_params)
-    with pytest.raises(TodoNotDone):
-        learning_rate_sweep([0.001, 0.002], num_seeds=3, progress=False)
-    monkeypatch.undo()
-    monkeypatch.setattr(_turns._Helper, "submit", noting)
-    started.clear()
-    interrupt_the_sweep(2.0)
-    assert started  # the helper was playing when the interrupt came
-    assert not helper_processes()
-
-
-def test_the_helper_ignores_ctrl_c_and_ends_when_the_kit_closes_its_input():
-    import signal
-
-    from hwlib import _physics
-
-    params = np.array([PARAMS, [0.2, 0.1, 0.4, -0.6]])
-    starts = _engine.start_states(np.array([3, 4]))
-    helper = _physics.HelperProcess(_engine.physics())
-    try:
-        helper.submit(params, starts)
-        helper.collect()
-        helper.process.send_signal(signal.SIGINT)  # Kernel -> Interrupt signals the whole process group
-        helper.submit(params, starts)
-        rewards, seconds = helper.collect()
-        np.testing.assert_array_equal(rewards, _engine.play_batch(params, starts=starts))
-        assert seconds >= 0
-    finally:
-        helper.close()
-    assert helper.process.returncode == 0  # it ended by itself when its input closed
-
-
-def test_the_split_gives_the_helper_what_keeps_both_cores_busy():
-    from hwlib._turns import _Split
-
-    split = _Split()
-    assert [split.ran(0.1) or split.cut(1000) for _ in range(4)] == [1000] * 4  # nothing measured yet: all
-    split.played([(500, 0.05), (500, 0.05)])  # turn 3's batch: 0.1 ms per episode
-    for turn in range(4, 9):
-        split.ran(0.1)
-        split.played([(1000, 0.1)])
-    # Turn 8's batch of 3000 episodes takes 0.3 s, played while turn 9's code (about turn 5's,
-    # 0.1 s) runs: the helper plays 2/3 of it, this process the rest after the code, 0.2 s each.
-    assert split.cut(3000) == 2000
-    assert split.cut(500) == 500  # shorter than the code: all to the helper
-
-
 def test_unseeded_starts_are_drawn_one_reset_at_a_time_if_gymnasium_draws_them_otherwise(monkeypatch):
     from gymnasium.envs.classic_control.cartpole import CartPoleEnv
 
-    from hwlib import _replay
+    from hwlib.machinery import replay as _replay
 
     assert _replay._resets_draw_in_blocks()  # this gymnasium: k resets draw one block of k x 4 numbers
     original_reset = CartPoleEnv.reset

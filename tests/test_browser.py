@@ -16,7 +16,7 @@ from the Run menu. Then it works the slider panel like a student:
   drags, the seed typed, the time step dragged, presets clicked in bursts, at machine speed and at
   human speed): the panel ends on the state of the last action. After each, the readouts show
   the expected θ, the reward is the one the kit's batch engine computes
-  (``hwlib.cartpole.run_episodes``, which runs none of the student's code), and the image has
+  (``hwlib.machinery.episodes.run_episodes``, which runs none of the student's code), and the image has
   content (no transparent pixel) and is exactly the figure ``hwlib.widgets.render_panel`` draws
   for the values the panel shows;
 - ▶ Play moves the time step through the episode (frames per second in
@@ -97,11 +97,14 @@ def chromium():
 
 @pytest.fixture(scope="module")
 def lab(chromium, tmp_path_factory):
-    """JupyterLab serving a copy of the kit's notebooks, so the test can never change them."""
+    """JupyterLab serving a copy of the kit's notebooks, so the test can never change them (and the
+    kit's example recordings beside them, where the p2 notebook's players find them)."""
     root = tmp_path_factory.mktemp("lab-root")
     (root / "notebooks").mkdir()
     for notebook in NOTEBOOKS.glob("*.ipynb"):
         shutil.copy2(notebook, root / "notebooks" / notebook.name)
+    if (KIT_ROOT / "data" / "audio").is_dir():  # copied: JupyterLab serves no file through a link leading outside its root
+        shutil.copytree(KIT_ROOT / "data" / "audio", root / "data" / "audio")
     with running_jupyterlab(root, tmp_path_factory.mktemp("lab-state")) as server:
         yield server
 
@@ -260,7 +263,7 @@ def read_seed(panel):
 def kit_reward(params, seed):
     """The reward of the kit's batch engine: the same as ``run_policy(CartPoleLinearPolicy(params), seed)``
     for a correct 1.1.1, and independent of the student's code."""
-    from hwlib.cartpole import run_episodes
+    from hwlib.machinery.episodes import run_episodes
 
     return int(run_episodes(np.array([params], dtype=float), [seed])[0])
 
@@ -859,3 +862,17 @@ def check_p2_runs(page, lab):
     first_figure.scroll_into_view_if_needed()
     assert first_figure.locator("img").evaluate("img => img.complete && img.naturalWidth > 0"), "the figure did not load"
     save_screenshot(first_figure, "p2_first_figure.png")
+    players = page.locator(".jp-NotebookPanel .jp-OutputArea-output audio")
+    if players.count():  # the recordings are present (data/audio): each plays its file, served by JupyterLab
+        for index in range(players.count()):
+            player = players.nth(index)
+            player.scroll_into_view_if_needed()
+            loaded = player.evaluate("""audio => new Promise(done => {
+                const source = audio.querySelector('source');
+                source.addEventListener('error', () => done('error: ' + source.src));
+                audio.addEventListener('loadedmetadata', () => done(audio.duration > 0 ? 'ok' : 'no duration'));
+                if (audio.readyState >= 1) { done(audio.duration > 0 ? 'ok' : 'no duration'); return; }
+                audio.load();
+                setTimeout(() => done('timeout: ' + source.src), 20000);
+            })""")
+            assert loaded == "ok", loaded

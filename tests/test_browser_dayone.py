@@ -151,6 +151,12 @@ def test_quick_start_serves_the_kit_so_hwlib_is_one_click_away(page, day_one_lab
         editor = page.locator(".jp-FileEditor .cm-content").first
         editor.wait_for()
         assert "class CartPoleLinearPolicy" in editor.inner_text()
+        # The link's #line= fragment scrolled the editor to the TODO: its first line is on screen.
+        todo_line = page.locator(".jp-FileEditor .cm-line", has_text="# TODO 1.1.1:").first
+        page.wait_for_function("""line => {
+            const scroller = line.closest('.cm-scroller').getBoundingClientRect(), box = line.getBoundingClientRect();
+            return box.height > 0 && box.top >= scroller.top && box.bottom <= scroller.bottom;
+        }""", arg=todo_line.element_handle(), timeout=10_000)
     shut_kernels(day_one_lab)
 
 

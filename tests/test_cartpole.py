@@ -2,15 +2,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from hwlib import CartPoleLinearPolicy, play_episode, random_policy_rewards, run_episodes, run_policy
-from hwlib._engine import batch_actions
-from hwlib.cartpole import (
-    ALWAYS_LEFT_PARAMS,
-    ALWAYS_RIGHT_PARAMS,
-    episode_seeds,
-    sample_random_params,
-    start_states,
-)
+from hwlib import CartPoleLinearPolicy, play_episode, random_policy_rewards, run_policy
+from hwlib.cartpole import ALWAYS_LEFT_PARAMS, ALWAYS_RIGHT_PARAMS, episode_seeds, sample_random_params
+from hwlib.machinery.episodes import batch_actions, run_episodes, start_states
 
 
 @pytest.mark.todo("1.1.1")
@@ -43,12 +37,6 @@ def test_policy_rejects_bad_params(params):
 def test_policy_rejects_non_numeric_params():
     with pytest.raises(TypeError, match="params must be an array of numbers"):
         CartPoleLinearPolicy(["a", "b", "c", "d"])
-
-
-@pytest.mark.parametrize("obs", [np.zeros(3), np.zeros((1, 4)), [0.0, np.nan, 0.0, 0.0]])
-def test_policy_rejects_bad_observation(obs):
-    with pytest.raises(ValueError, match=r"obs must (have shape \(4,\)|hold only finite numbers)"):
-        CartPoleLinearPolicy([0.0, 0.0, 0.0, 0.0])(obs)
 
 
 @pytest.mark.todo("1.1.1")
@@ -168,7 +156,7 @@ def gymnasium_vector_rewards(params, seeds):
 
 @pytest.mark.todo("1.1.1")
 def test_the_batch_engine_steps_exactly_as_gymnasiums_vector_env(balancing_params):
-    from hwlib._engine import play_batch
+    from hwlib.machinery.episodes import play_batch
 
     generator = np.random.default_rng(11)
     params = np.concatenate([np.array(balancing_params)[None, :] + generator.normal(0, 0.05, (150, 4)),

@@ -1,14 +1,18 @@
 """Dependencies point one way. hwlib never imports the tools (hwtools, instructor): the homework
 stands on its own. What runs inside the grader's sandbox (``hwtools/grade/in_sandbox/``, copied
-whole into every kit) imports nothing outside its folder. (That no package of the kit has an import
-cycle is tests/test_release.py::test_the_kit_has_no_import_cycles.)"""
+whole into every kit) imports nothing outside its folder. Importing hwlib keeps numpy's BLAS to one
+thread unless the user set it. (That no package of the kit has an import cycle is
+tests/test_release.py::test_the_kit_has_no_import_cycles.)"""
 
 import ast
+import os
 import shutil
 import subprocess
 import sys
 import sysconfig
 from pathlib import Path
+
+import pytest
 
 KIT = Path(__file__).resolve().parents[1]
 IN_SANDBOX = KIT / "hwtools" / "grade" / "in_sandbox"
@@ -51,3 +55,28 @@ def test_what_runs_in_the_sandbox_imports_nothing_outside_its_folder(tmp_path):
     result = subprocess.run([sys.executable, "-I", "-S", "-c", code], capture_output=True, text=True, timeout=120,
                             cwd=tmp_path)
     assert result.returncode == 0, result.stderr
+
+
+OPENBLAS_THREADS = """
+import ctypes, os, sys
+{imports}
+libraries = sorted({{line.split()[-1] for line in open("/proc/self/maps") if "openblas" in line.lower()}})
+functions = [getattr(ctypes.CDLL(path), name, None) for path in libraries
+             for name in ("scipy_openblas_get_num_threads64_", "openblas_get_num_threads64_", "openblas_get_num_threads")]
+print(next((function() for function in functions if function is not None), "unknown"))
+"""
+
+
+def openblas_threads(imports, **env):
+    environment = {key: value for key, value in os.environ.items() if key not in ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+    done = subprocess.run([sys.executable, "-c", OPENBLAS_THREADS.format(imports=imports)], env={**environment, **env},
+                          capture_output=True, text=True, check=True)
+    return done.stdout.strip()
+
+
+def test_importing_hwlib_first_keeps_blas_to_one_thread_unless_it_is_set():
+    if openblas_threads("import numpy") == "unknown":
+        pytest.skip("this numpy's BLAS is not OpenBLAS")
+    assert openblas_threads("import hwlib\nimport numpy") == "1"
+    assert openblas_threads("import hwlib\nimport numpy", OPENBLAS_NUM_THREADS="2") == "2"  # a setting of the user's wins
+    assert openblas_threads("import numpy\nimport hwlib", OPENBLAS_NUM_THREADS="2") == "2"

@@ -8,7 +8,8 @@ from matplotlib.figure import Figure
 
 from hwlib import CartPoleLinearPolicy, run_policy
 from hwlib import landscape as landscape_module
-from hwlib.cartpole import episode_seeds, make_env, run_episodes
+from hwlib.cartpole import episode_seeds, make_env
+from hwlib.machinery.episodes import run_episodes
 from hwlib.landscape import (
     AXIS_LABELS,
     LandscapeExplorer,
@@ -206,6 +207,26 @@ def test_figure_marks_the_finite_difference_stencil(default_slice):
     stencil = next(line for line in ax.get_lines() if "h = 0.5" in line.get_label())
     np.testing.assert_allclose(stencil.get_xdata(), [-1.6, -0.6, -1.1, -1.1])
     np.testing.assert_allclose(stencil.get_ydata(), [-0.7, -0.7, -1.2, -0.2])
+    from matplotlib.colors import to_rgb
+
+    assert to_rgb(stencil.get_markeredgecolor()) != to_rgb("white"), "its legend marker must show on the white legend"
+
+
+def test_the_path_labels_stay_inside_the_axes_and_clear_of_each_other():
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    path = np.zeros((21, 4))  # the notebook's path: a climb, then a pile of iterations near one spot
+    path[:, 2] = [0, -0.02, -0.3, -0.56, -0.77, -0.9, -0.95, -0.98, -1.02, -1.03] + [-1.04] * 11
+    path[:, 3] = [0, -0.12, -0.24, -0.45, -0.64, -0.66, -0.63, -0.63, -0.62, -0.62] + [-0.92] * 11
+    figure = plot_reward_landscape(reward_slice(path[-1], axes=(2, 3), grid_size=5, num_episodes=1), path=path, fd_step=0.5)
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    ax = figure.axes[0]
+    boxes = [text.get_bbox_patch().get_window_extent(canvas.get_renderer()) for text in ax.texts]
+    assert [text.get_text() for text in ax.texts] == _labels(ax) and "10–20" in _labels(ax)
+    for index, box in enumerate(boxes):
+        assert ax.bbox.x0 <= box.x0 and box.x1 <= ax.bbox.x1 and ax.bbox.y0 <= box.y0 and box.y1 <= ax.bbox.y1, _labels(ax)[index]
+        assert not any(box.overlaps(other) for other in boxes[index + 1:]), _labels(ax)[index]
 
 
 def test_figure_names_theta_and_says_when_it_lies_outside_the_plotted_range():

@@ -132,6 +132,30 @@ def test_sweep_figure_labels_each_rate_and_keeps_its_legend_off_the_data():
     _legend_clear_of_axes(figure)
 
 
+def label_boxes_clear(figure, texts):
+    """The window boxes of the annotations whose text is in ``texts``, checked: inside the axes, clear
+    of each other and of every point of the axes' lines."""
+    renderer = _drawn(figure)
+    ax = figure.axes[0]
+    boxes = [annotation.get_bbox_patch().get_window_extent(renderer) for annotation in ax.texts if annotation.get_text() in texts]
+    assert boxes
+    for index, box in enumerate(boxes):
+        assert ax.bbox.x0 <= box.x0 and box.x1 <= ax.bbox.x1 and ax.bbox.y0 <= box.y0 and box.y1 <= ax.bbox.y1, "a label leaves the axes"
+        assert not any(box.overlaps(other) for other in boxes[index + 1:]), "two labels overlap"
+        for line in ax.get_lines():
+            points = ax.transData.transform(np.column_stack([line.get_xdata(), line.get_ydata()]))
+            assert not any(box.contains(x, y) for x, y in points), "a label sits on a point"
+    return boxes
+
+
+def test_sweep_labels_sit_beside_their_points_not_on_them_or_each_other():
+    rates = [1e-4, 3e-4, 3.5e-4, 4e-4, 6e-4, 8e-4, 1e-3, 1.2e-3, 2e-3, 5e-3, 1e-2]
+    shares = [0.0, 0.2, 0.95, 1.0, 1.0, 1.0, 1.0, 0.95, 0.85, 0.7, 0.45]  # the notebook's sweep
+    summary = SimpleNamespace(learning_rates=rates, converged_fraction=shares, seeds=range(20), deadline=7)
+    figure = plot_learning_rate_sweep(summary, chosen_learning_rate=6.5e-4)
+    assert len(label_boxes_clear(figure, {f"{share:.0%}" for share in shares})) == len(rates)
+
+
 def test_sweep_figure_takes_any_record_with_the_sweep_fields():
     summary = SimpleNamespace(learning_rates=[1e-3, 1e-2], converged_fraction=[0.5, 1.0], seeds=range(4), deadline=7)
     assert "share of 4 seeds" in _texts(plot_learning_rate_sweep(summary))

@@ -492,7 +492,7 @@ def test_command_line_refuses_to_overwrite_and_replaces_an_earlier_edition_with_
 # "Not done yet": an untouched function stub raises TodoNotDone, naming its TODO
 # --------------------------------------------------------------------------------------------
 
-TODO_MODULE = '''"""The kit's "not done yet" (a stand-in for hwlib/_todo.py)."""
+TODO_MODULE = '''"""The kit's "not done yet" (a stand-in for hwlib/machinery/todos.py)."""
 
 
 class TodoNotDone(NotImplementedError):
@@ -503,12 +503,17 @@ class TodoNotDone(NotImplementedError):
 
 
 def _with_not_done(module):
-    return module.replace("import numpy as np\n", "import numpy as np\n\nfrom hwlib._todo import TodoNotDone\n", 1)
+    return module.replace("import numpy as np\n", "import numpy as np\n\nfrom hwlib.machinery.todos import TodoNotDone\n", 1)
+
+
+def _write_todo_module(source):
+    (source / "hwlib" / "machinery").mkdir(exist_ok=True)
+    (source / "hwlib" / "machinery" / "todos.py").write_text(TODO_MODULE)
 
 
 def test_function_stubs_raise_todo_not_done_where_the_kit_defines_it(tmp_path):
     source = make_kit(tmp_path / "src", module=_with_not_done(MODULE))
-    (source / "hwlib" / "_todo.py").write_text(TODO_MODULE)
+    _write_todo_module(source)
     build_student_edition(source, tmp_path / "out", answer_key=False)
     module = (tmp_path / "out" / "hwlib" / "mod.py").read_text()
     assert ("    x = np.asarray(x)\n    ### BEGIN TODO 1.1.1\n    # TODO 1.1.1: multiply by two\n"
@@ -516,7 +521,7 @@ def test_function_stubs_raise_todo_not_done_where_the_kit_defines_it(tmp_path):
     assert re.search(r'^            # TODO 1\.2\.1: .+\n            raise TodoNotDone\("1\.2\.1"\)\n            ### END TODO 1\.2\.1$',
                      module, re.M)
     assert "RATE = None  # TODO 1.3.3: " in module and "pass" not in module  # module level: still None
-    code = ("import hwlib.mod as m\nfrom hwlib._todo import TodoNotDone\nfor call in (lambda: m.double(1), lambda: m.Thing().value()):\n"
+    code = ("import hwlib.mod as m\nfrom hwlib.machinery.todos import TodoNotDone\nfor call in (lambda: m.double(1), lambda: m.Thing().value()):\n"
             "    try:\n        call()\n    except TodoNotDone as error:\n        print(error.todo)\nprint(m.RATE)")
     result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path / "out", capture_output=True, text=True,
                             env=dict(os.environ, PYTHONPATH=str(tmp_path / "out")))
@@ -526,13 +531,13 @@ def test_function_stubs_raise_todo_not_done_where_the_kit_defines_it(tmp_path):
 
 def test_a_module_with_a_function_stub_must_import_todo_not_done(tmp_path):
     source = make_kit(tmp_path / "src")  # MODULE does not import it
-    (source / "hwlib" / "_todo.py").write_text(TODO_MODULE)
+    _write_todo_module(source)
     with pytest.raises(ReleaseError, match=r"hwlib/mod\.py:\d+: the stub of TODO 1\.1\.1 raises TodoNotDone; import it"):
         build_student_edition(source, tmp_path / "out", answer_key=False)
 
 
 def test_stub_lines_come_before_the_raise_and_a_stub_that_raises_keeps_its_own():
-    given = ("from hwlib._todo import TodoNotDone\n\n\ndef f(x):\n    ### BEGIN SOLUTION 1.1.1\n    ### HINT: h\n"
+    given = ("from hwlib.machinery.todos import TodoNotDone\n\n\ndef f(x):\n    ### BEGIN SOLUTION 1.1.1\n    ### HINT: h\n"
              "    ### STUB: y = x\n    y = x\n    return 2 * y\n    ### END SOLUTION 1.1.1\n\n\n"
              "def g(x):\n    ### BEGIN SOLUTION 1.2.1\n    ### HINT: h\n    ### STUB: raise ValueError('mine')\n"
              "    return 3\n    ### END SOLUTION 1.2.1\n")
@@ -543,15 +548,15 @@ def test_stub_lines_come_before_the_raise_and_a_stub_that_raises_keeps_its_own()
 
 
 def test_every_function_stub_of_this_kit_raises_todo_not_done(tmp_path):
-    """This kit's student edition, with ``hwlib/_todo.py`` and its imports (added here where the kit
+    """This kit's student edition, with ``hwlib/machinery/todos.py`` and its imports (added here where the kit
     does not have them yet): every block in a function is its hint and ``raise TodoNotDone("id")``,
     every module imports, and an untouched ``scalar_finite_diff`` raises TodoNotDone("1.2.1")."""
     source = tmp_path / "src"
     for name in kit_files(REPO):
         (source / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(REPO / name, source / name)
-    if not (source / "hwlib" / "_todo.py").exists():
-        (source / "hwlib" / "_todo.py").write_text(TODO_MODULE)
+    if not (source / "hwlib" / "machinery" / "todos.py").exists():
+        _write_todo_module(source)
     function_todos = {}
     for path in sorted((source / "hwlib").rglob("*.py")):
         found = [block for block, _, _ in file_blocks(path)]
@@ -560,7 +565,7 @@ def test_every_function_stub_of_this_kit_raises_todo_not_done(tmp_path):
         if any(block.indent for block in found) and not re.search(r"^from \S+ import .*\bTodoNotDone\b", text, re.M):
             last_import = max(node.end_lineno for node in ast.parse(text).body if isinstance(node, (ast.Import, ast.ImportFrom)))
             lines = text.split("\n")
-            path.write_text("\n".join(lines[:last_import] + ["from hwlib._todo import TodoNotDone"] + lines[last_import:]))
+            path.write_text("\n".join(lines[:last_import] + ["from hwlib.machinery.todos import TodoNotDone"] + lines[last_import:]))
     assert {"1.1.1", "1.2.1", "1.3.1", "1.3.2", "2.1.1", "2.2.1", "2.2.2", "2.2.3", "2.3.1"} <= set(function_todos)
     out = tmp_path / "student"
     build_student_edition(source, out, answer_key=False)
@@ -569,7 +574,7 @@ def test_every_function_stub_of_this_kit_raises_todo_not_done(tmp_path):
         assert re.search(rf'^([ \t]+)### BEGIN TODO {re.escape(todo)}\n\1# TODO {re.escape(todo)}: .+\n'
                          rf'\1raise TodoNotDone\("{re.escape(todo)}"\)\n\1### END TODO {re.escape(todo)}$', student, re.M), todo
     assert re.search(r"^LEARNING_RATE = None  # TODO 1\.3\.3: ", (out / "hwlib" / "settings.py").read_text(), re.M)
-    code = ("import hwlib\nfrom hwlib._todo import TodoNotDone\nfrom hwlib.finite_diff import scalar_finite_diff\n"
+    code = ("import hwlib\nfrom hwlib.machinery.todos import TodoNotDone\nfrom hwlib.finite_diff import scalar_finite_diff\n"
             "try:\n    scalar_finite_diff(lambda x: float(x.sum()), [1.0, 2.0], 0.1)\nexcept TodoNotDone as error:\n"
             "    print('raised', *error.args)")
     result = subprocess.run([sys.executable, "-c", code], cwd=out, capture_output=True, text=True,

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwlib.cartpole import run_episodes
+from hwlib.machinery.episodes import run_episodes
 from instructor.release import HOMEWORK_FOLDERS, build_student_edition, file_blocks, kit_files
 
 KIT = Path(__file__).resolve().parents[1]

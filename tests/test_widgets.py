@@ -10,7 +10,9 @@ import matplotlib.image
 import numpy as np
 import pytest
 
-from hwlib.cartpole import ALWAYS_LEFT_PARAMS, ALWAYS_RIGHT_PARAMS, MAX_EPISODE_REWARD, run_episodes
+from hwlib.cartpole import ALWAYS_LEFT_PARAMS, ALWAYS_RIGHT_PARAMS, MAX_EPISODE_REWARD
+from hwlib.machinery.episodes import run_episodes
+from hwlib.machinery.latest_only import LatestOnly
 from hwlib.plots.cartpole import EpisodeView
 from hwlib.widgets import (
     DEFAULT_PARAMS,
@@ -20,7 +22,6 @@ from hwlib.widgets import (
     SLIDER_MAX,
     SLIDER_MIN,
     PLAY_INTERVAL_MS,
-    LatestOnly,
     PanelControls,
     SliderPanel,
     render_panel,
@@ -375,7 +376,7 @@ def test_without_its_front_end_part_the_panel_draws_the_controls_values():
 
 
 class NotDoneYet(NotImplementedError):
-    """Stands in for hwlib._todo.TodoNotDone: a NotImplementedError that names its TODO."""
+    """Stands in for hwlib.machinery.todos.TodoNotDone: a NotImplementedError that names its TODO."""
 
     def __init__(self, todo):
         super().__init__(todo)
@@ -389,7 +390,7 @@ class NotDoneYet(NotImplementedError):
 def not_done_errors():
     errors = [NotDoneYet("1.1.1")]
     with contextlib.suppress(ImportError):
-        from hwlib._todo import TodoNotDone
+        from hwlib.machinery.todos import TodoNotDone
 
         errors.append(TodoNotDone("1.1.1"))
     return errors
@@ -631,3 +632,25 @@ def test_slider_panel_returns_a_panel_that_displays_as_its_widget():
     assert isinstance(panel, SliderPanel)
     bundle = panel._repr_mimebundle_()
     assert bundle["application/vnd.jupyter.widget-view+json"]["model_id"] == panel.widget.model_id
+
+
+def test_the_panel_says_when_a_change_leaves_theta_pointing_where_it_pointed():
+    from hwlib.widgets import DIRECTION_NOTE, same_direction
+
+    assert same_direction((0, 0, -1, 0), (0, 0, -1.5, 0)) and same_direction((0.3, -0.2, 0.8, 0.1), (0.6, -0.4, 1.6, 0.2))
+    assert not same_direction((0, 0, -1, 0), (0, 0, 1, 0))  # the sign flips: another policy
+    assert not same_direction((0, 0, 0, 0), (0, 0, -1, 0)) and not same_direction((0, 0, -1, 0), (0, 0, -1, 0))
+    assert not same_direction((0, 0, -1, 0), (0, 0, -1, 0.01))
+    panel = SliderPanel((0.0, 0.0, -1.0, 0.0))
+    panel.param_sliders[2].value = -1.5  # θ₃ alone, the same sign: the same policy, the same episode
+    assert DIRECTION_NOTE in html_text(panel.reward_label.value) and DIRECTION_NOTE in panel.reward_label.tooltip
+    panel.step_slider.value = 3  # moving through the episode keeps the note
+    assert DIRECTION_NOTE in html_text(panel.reward_label.value)
+    panel.param_sliders[2].value = 1.0  # the sign flips: a new episode, no note
+    assert DIRECTION_NOTE not in html_text(panel.reward_label.value)
+
+
+def html_text(value):
+    import html
+
+    return html.unescape(value)

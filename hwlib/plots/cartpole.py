@@ -16,7 +16,7 @@ from matplotlib.patches import Circle, Rectangle
 from matplotlib.ticker import MaxNLocator
 from PIL import Image
 
-from hwlib._checks import as_float_array, check_finite, check_positive_number
+from hwlib.machinery.validation import as_float_array, check_finite, check_positive_number
 from hwlib.cartpole import MAX_EPISODE_REWARD, THETA_THRESHOLD_RADIANS, X_THRESHOLD, Episode
 from hwlib.plots._figure import figure_png, new_figure  # noqa: F401  (figure_png is re-exported)
 

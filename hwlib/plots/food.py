@@ -75,14 +75,14 @@ def plot_confusion_matrix(counts, class_names, title="Confusion matrix of the te
             f"counts must be a ({len(class_names)}, {len(class_names)}) array of non-negative integers, one row and "
             f"column per class name, got dtype {counts.dtype} and shape {counts.shape}"
         )
-    figure = new_figure(PRINT_WIDTH, 3.8)
+    figure = new_figure(PRINT_WIDTH, 5.6)  # tall enough for seven rows of readable cells beside the colour bar
     ax = figure.add_subplot()
     # Colour by the share of each true class so small classes are as readable as big ones.
     support = counts.sum(axis=1, keepdims=True)
     shares = np.divide(counts, support, out=np.zeros(counts.shape), where=support > 0)
     image = ax.imshow(shares, cmap="Blues", vmin=0, vmax=1)
     for (row, col), count in np.ndenumerate(counts):
-        ax.text(col, row, str(count), ha="center", va="center", fontsize="small", color="white" if shares[row, col] > 0.6 else "black")
+        ax.text(col, row, str(count), ha="center", va="center", color="white" if shares[row, col] > 0.6 else "black")
     ticks = np.arange(len(class_names))
     ax.set_xticks(ticks, class_names, rotation=45, ha="right")
     ax.set_yticks(ticks, class_names)

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from hwlib._checks import check_path, check_positive_number
+from hwlib.machinery.validation import check_path, check_positive_number
 from hwlib.cartpole import MAX_EPISODE_REWARD, OBSERVATION_NAMES
-from hwlib.plots._figure import figure_png, new_figure  # noqa: F401  (figure_png is re-exported)
+from hwlib.plots._figure import LABEL_FONT_SIZE, figure_png, label_offsets, new_figure  # noqa: F401  (figure_png is re-exported)
 
 AXIS_NAMES = ("θ₁", "θ₂", "θ₃", "θ₄")  # θ₁ is the weight on the cart position, ...
 AXIS_LABELS = tuple(f"{symbol} · {name}" for symbol, name in zip(AXIS_NAMES, OBSERVATION_NAMES))
@@ -69,27 +69,34 @@ def plot_reward_landscape(landscape, path=None, fd_step=None, figure=None):
         stencil_y = theta_y + np.array([0, 0, -fd_step, fd_step])
         for x, y in zip(stencil_x, stencil_y):
             ax.plot([theta_x, x], [theta_y, y], color="white", lw=0.8, alpha=0.8)
-        ax.plot(stencil_x, stencil_y, ls="none", marker="o", ms=5, mfc="none", mec="white",
+        ax.plot(stencil_x, stencil_y, ls="none", marker="o", ms=5, mfc="white", mec="black", mew=0.8,
                 label=f"θ ± h along each axis (h = {fd_step:g})")
     if path is not None:
-        _draw_path(ax, path[:, horizontal], path[:, vertical], span=high - low)
+        ax.plot(path[:, horizontal], path[:, vertical], color=PATH_COLOUR, lw=1.5, marker="o", ms=5, mec="white", mew=0.8,
+                label=f"training path, iterations 0–{len(path) - 1} (projected onto the slice)")
     outside = not (low <= theta_x <= high and low <= theta_y <= high)
     ax.plot(theta_x, theta_y, ls="none", marker="*", ms=16, mfc="white", mec="black",
             label=f"θ = {format_theta(landscape.theta)}" + (" (outside the plotted range)" if outside else ""))
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1, fontsize="small", frameon=False)
+    if path is not None:
+        figure.draw_without_rendering()  # the final layout: the labels' sides are chosen in its pixels
+        _label_path(ax, path[:, horizontal], path[:, vertical], span=high - low)
     return figure
 
 
-def _draw_path(ax, xs, ys, span):
-    """The training path: a line through one dot per iteration, each run of (nearly) coinciding
-    consecutive dots labelled once with its first and last iteration."""
-    ax.plot(xs, ys, color=PATH_COLOUR, lw=1.5, marker="o", ms=5, mec="white", mew=0.8,
-            label=f"training path, iterations 0–{len(xs) - 1} (projected onto the slice)")
-    start = 0
+def _label_path(ax, xs, ys, span):
+    """The training path's labels: each run of (nearly) coinciding consecutive points labelled once with
+    its first and last iteration ("9–20"), beside it where neither the path nor another label is."""
+    starts, labels, start = [], [], 0
     for index in range(1, len(xs) + 1):
         if index < len(xs) and np.hypot(xs[index] - xs[start], ys[index] - ys[start]) <= MERGE_FRACTION * span:
             continue
-        label = str(start) if index - 1 == start else f"{start}–{index - 1}"
-        ax.annotate(label, (xs[start], ys[start]), xytext=(4, 4), textcoords="offset points", fontsize=8,
-                    color="black", bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.8})
+        starts.append(start)
+        labels.append(str(start) if index - 1 == start else f"{start}–{index - 1}")
         start = index
+    label_xs, label_ys = xs[starts], ys[starts]
+    offsets = label_offsets(ax, label_xs, label_ys, labels, distance=12)
+    for x, y, label, offset in zip(label_xs, label_ys, labels, offsets):  # a thin line from each label to its point
+        ax.annotate(label, (x, y), xytext=offset, textcoords="offset points", ha="center", va="center",
+                    fontsize=LABEL_FONT_SIZE, color="black", arrowprops={"arrowstyle": "-", "lw": 0.6, "color": "0.15"},
+                    bbox={"boxstyle": "round,pad=0.15", "fc": "white", "ec": "none", "alpha": 0.85})

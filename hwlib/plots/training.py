@@ -12,7 +12,7 @@ from matplotlib.ticker import MaxNLocator, MultipleLocator, PercentFormatter
 
 from hwlib import settings
 from hwlib.cartpole import MAX_EPISODE_REWARD
-from hwlib.plots._figure import new_figure
+from hwlib.plots._figure import LABEL_FONT_SIZE, label_offsets, new_figure
 from hwlib.policy_search import iterations_to_converge
 
 PRINT_WIDTH = 7.0  # inches: A4 (210 mm) less two 16 mm margins is 178 mm
@@ -88,14 +88,14 @@ def plot_training_curve(rewards, learning_rate=None, deadline=settings.CONVERGEN
     return figure
 
 
-LABEL_SPACING = 0.16  # decades of learning rate: a "100%" label is about this wide on the sweep's axis
 
 
 def plot_learning_rate_sweep(sweep, chosen_learning_rate=None):
     """Share of seeds converging within the deadline, per learning rate, with ``chosen_learning_rate`` marked.
 
     ``sweep`` is an ``hwlib.training.SweepResult`` or anything with the same ``learning_rates``,
-    ``converged_fraction``, ``seeds`` and ``deadline``.
+    ``converged_fraction``, ``seeds`` and ``deadline``. Each point's share is written beside it, on
+    the side where neither the line nor another label is (``label_offsets``).
     """
     rates = np.asarray(sweep.learning_rates, dtype=np.float64)
     fractions = np.asarray(sweep.converged_fraction, dtype=np.float64)
@@ -104,22 +104,19 @@ def plot_learning_rate_sweep(sweep, chosen_learning_rate=None):
     figure = new_figure(PRINT_WIDTH, 3.0)
     ax = figure.add_subplot()
     ax.semilogx(rates, fractions, marker="o", color="tab:blue", label=f"share of {len(sweep.seeds)} seeds")
-    previous, level = None, 0
-    for rate, fraction in zip(rates, fractions):
-        # Labels of rates closer than about a label's width alternate between two heights.
-        level = 1 - level if previous is not None and np.log10(rate / previous) < LABEL_SPACING else 0
-        previous = rate
-        offset = (-14 - 12 * level) if fraction > 0.5 else (8 + 12 * level)
-        ax.annotate(f"{fraction:.0%}", (rate, fraction), xytext=(0, offset), textcoords="offset points",
-                    ha="center", va="center", fontsize="small",
-                    bbox={"boxstyle": "round,pad=0.1", "facecolor": "white", "edgecolor": "none", "alpha": 0.85})
-    if chosen_learning_rate is not None:
-        ax.axvline(chosen_learning_rate, color="tab:green", ls="--", label=f"chosen learning rate {chosen_learning_rate:g}")
-    ax.set_ylim(-0.05, 1.05)
+    ax.set_ylim(-0.14, 1.24)  # room for a label above 100% and below 0%
+    ax.set_yticks(np.linspace(0, 1, 6))
     ax.yaxis.set_major_formatter(PercentFormatter(xmax=1))
     ax.set_xlabel("learning rate")
     ax.set_ylabel(f"converged by iteration {sweep.deadline}")
     ax.set_title(f"Learning-rate sweep: share of {len(sweep.seeds)} seeds converged within {sweep.deadline} iterations")
     ax.grid(True, which="both", alpha=0.3)
+    if chosen_learning_rate is not None:
+        ax.axvline(chosen_learning_rate, color="tab:green", ls="--", label=f"chosen learning rate {chosen_learning_rate:g}")
     _legend_below(figure, ax, 2)
+    figure.draw_without_rendering()  # the final layout: the labels' sides are chosen in its pixels
+    labels = [f"{fraction:.0%}" for fraction in fractions]
+    for rate, fraction, label, offset in zip(rates, fractions, labels, label_offsets(ax, rates, fractions, labels)):
+        ax.annotate(label, (rate, fraction), xytext=offset, textcoords="offset points", ha="center", va="center",
+                    fontsize=LABEL_FONT_SIZE, bbox={"boxstyle": "round,pad=0.1", "facecolor": "white", "edgecolor": "none", "alpha": 0.85})
     return figure

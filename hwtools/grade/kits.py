@@ -82,7 +82,7 @@ def composite_files(layout, student_bodies, reference_todos, only=None):
     """{relative path: text} of a kit built from ``layout`` (the reference): blocks of the TODOs in
     ``student_bodies`` get that code, blocks in ``reference_todos`` keep the reference's, every
     other block is stubbed. ``only``: the relative paths to include, with the kit's modules they
-    import (``kit_imports``: ``hwlib/_todo.py`` once a module imports it), and an empty package
+    import (``kit_imports``: ``hwlib/machinery/todos.py`` once a module imports it), and an empty package
     ``__init__`` where the reference's is left out."""
     files = {}
     if only is not None:

@@ -117,7 +117,7 @@ def _exception(reply):
         return error
     kind, message = str(reply.get("type", "")), str(reply.get("message", ""))
     if kind == "TodoNotDone":
-        return getattr(sys.modules.get("hwlib._todo"), "TodoNotDone", NotImplementedError)(message)
+        return getattr(sys.modules.get("hwlib.machinery.todos"), "TodoNotDone", NotImplementedError)(message)
     cls = _ERRORS.get(kind)
     return cls(message) if cls is not None else RuntimeError(f"{kind}: {message}")
 

@@ -1,4 +1,4 @@
-// The slider panel's front-end part (hwlib/_panel_parts.py: PanelControls), loaded by anywidget.
+// The slider panel's front-end part (hwlib/machinery/panel_controls.py: PanelControls), loaded by anywidget.
 const modelId = (ref) => String(ref).replace(/^IPY_MODEL_/, "");
 // A change whose origin is the kernel arrives through the model's set_state, which holds
 // _state_lock while it sets the values; a change made in the browser does not.

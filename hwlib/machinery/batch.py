@@ -1,11 +1,14 @@
-"""How the kit plays the episodes of your training runs together. Students need not read this.
+"""How the kit plays the episodes of your training runs together.
 
 Your code is plain and sequential: ``eval_params`` loops over its rollouts and calls
 ``run_policy`` once per episode, training loops over iterations, the learning-rate sweep trains
-run after run. Played one by one, the sweep's 796,400 episodes would take more than an hour.
-``Session.run(tasks)`` (used by ``hwlib/training.py``) makes the same code fast:
+run after run. Played one by one, the sweep's episodes would take more than an hour.
+``Session.run(tasks)`` (used by ``hwlib/training.py``) makes the same code fast, from the outside:
+while a session runs, ``Session.replaying`` puts the session's own functions in place of
+``run_policy``, ``eval_params`` and ``scalar_finite_diff`` in ``hwlib.policy_search`` (where your
+code looks them up) and puts yours back afterwards. Your files are not changed.
 
-1. **Record, then replay** (``hwlib/_replay.py``). ``eval_params`` and ``scalar_finite_diff``, as
+1. **Record, then replay** (``replay.py``). ``eval_params`` and ``scalar_finite_diff``, as
    your training calls them, run twice per call: first with placeholder rewards, which tells the
    kit exactly which episodes the call asks for, whatever seeds it uses; then for real, after all
    of them were played in one batch. Nothing is played that the code does not ask for. (Once a
@@ -13,13 +16,13 @@ run after run. Played one by one, the sweep's 796,400 episodes would take more t
    its calls is skipped.)
 2. **Runs side by side.** Several tasks (the sweep's 220 training runs) run in threads, one at a
    time in a fixed order, each until it waits for episodes; then the main thread plays what all
-   of them wait for in one batch (``hwlib/_engine.py``). The order never depends on timing, so a
+   of them wait for in one batch (``episodes.py``). The order never depends on timing, so a
    sweep gives the same numbers every time.
 3. **Episodes without a seed** (``run_policy(policy)``) start where the next ``reset()`` of the
    run's own environment (seeded once with the training run's seed) starts them, so they too are
    the same in the batched run and in the plain loop (``batched=False``), and from one run to the next.
 4. **Checked, not trusted**: a parameter vector's episodes are played with the kit's copy of
-   equation (1) only after ``_engine.agrees_with_equation_one``; others are played step by step
+   equation (1) only after ``episodes.agrees_with_equation_one``; others are played step by step
    with the policy's own ``__call__``. Results are kept by (policy class, parameters, seed), and
    an episode is a pure function of those, so the rewards are those of the plain loop.
 5. **Stopping**: Kernel → Interrupt (KeyboardInterrupt in the main thread), an error in one run,
@@ -31,20 +34,22 @@ from __future__ import annotations
 
 import collections
 import ctypes
+import functools
 import random
 import threading
 import time
 
 import numpy as np
 
-from hwlib import _engine, _turns
-from hwlib._replay import (CLASSES, PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying, RunMemory,
-                           class_code, policy_of)
-from hwlib.cartpole import CartPoleLinearPolicy, _play, make_env
+from hwlib.cartpole import NUM_OBSERVATIONS, make_env
+from hwlib.machinery import episodes
+from hwlib.machinery.replay import (CLASSES, PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying,
+                                    RunMemory, class_code, policy_of)
+from hwlib.machinery.validation import check_policy, check_seed
 
 __all__ = ["EVALUATIONS_PER_ITERATION", "PLACEHOLDER_REWARD", "Cancelled", "Session", "current_run"]
 
-EVALUATIONS_PER_ITERATION = 2 * _engine.NUM_OBSERVATIONS + 1  # eq. (3) on 4 coordinates, then g(new params)
+EVALUATIONS_PER_ITERATION = 2 * NUM_OBSERVATIONS + 1  # eq. (3) on 4 coordinates, then g(new params)
 _KEEP_ROUNDS = 4  # results are kept for this many batches after they were played
 _MAX_RECORDED = 100_000  # a recording pass that asks for more than this is given up
 _JOIN_SECONDS = 1.0  # how long a stopped run's thread may take to end
@@ -56,7 +61,6 @@ class _Current(threading.local):
 
 
 _current = _Current()
-_FLOAT64, _SHAPE, _FINITE = np.dtype(np.float64), (_engine.NUM_OBSERVATIONS,), _engine.FINITE_PARAMS
 
 
 def current_run():
@@ -156,15 +160,13 @@ class Session(Replaying):
         return [run.result for run in self.runs]
 
     def _run_inline(self, run):
-        previous_run, previous_route = current_run(), _engine.set_route(self._route)
-        _current.run = run
+        previous_run, _current.run = current_run(), run
         try:
             run.state = "running"
             run.result = run.task()
         finally:
             run.state = "done"
             _current.run = previous_run
-            _engine.set_route(previous_route)
 
     def _run_threads(self):
         self._threaded = True
@@ -173,39 +175,30 @@ class Session(Replaying):
         for thread in threads:
             thread.start()
         try:
-            if _turns.usable_cores() >= 2:
-                _turns.rounds_side_by_side(self)
-            else:
-                self._rounds_in_turn()
+            self._rounds_in_turn()
         except BaseException:
             self._stop(threads)
             raise
         for thread in threads:
             thread.join()
 
-    def go_on(self, runs):
-        """Let every ready run of ``runs`` go on until it waits or ends; raise the first error of one."""
-        for run in runs:
-            if run.state == "ready":
-                self._hand_over(run)
-                if run.error is not None and not isinstance(run.error, Cancelled):
-                    raise run.error
-
-    def round_done(self, runs):
-        for run in runs:
-            if run.state == "waiting":
-                run.state = "ready"
-        if self.on_round is not None:
-            self.on_round(self)
-
     def _rounds_in_turn(self):
-        """Every run goes on until it waits; then their episodes are played; again."""
+        """Every run goes on, in order, until it waits for episodes or ends (the first error of one is
+        raised); then the episodes they all wait for are played in one batch; again."""
         while True:
-            self.go_on(self.runs)
+            for run in self.runs:
+                if run.state == "ready":
+                    self._hand_over(run)
+                    if run.error is not None and not isinstance(run.error, Cancelled):
+                        raise run.error
             if not any(run.state == "waiting" for run in self.runs):
                 return
             self.play_round()
-            self.round_done(self.runs)
+            for run in self.runs:
+                if run.state == "waiting":
+                    run.state = "ready"
+            if self.on_round is not None:
+                self.on_round(self)
 
     def _hand_over(self, run):
         """Let ``run``'s thread go on until it waits for episodes or ends."""
@@ -217,7 +210,6 @@ class Session(Replaying):
 
     def _work(self, run):
         _current.run = run
-        _engine.set_route(self._route)
         run.go.wait()
         try:
             if not self.cancelled:
@@ -226,7 +218,6 @@ class Session(Replaying):
             run.error = error
         finally:
             run.state = "done"
-            _engine.set_route(None)
             _current.run = None
             self._back.set()
 
@@ -258,33 +249,41 @@ class Session(Replaying):
 
     # --- episodes -----------------------------------------------------------------------------
 
-    def _route(self, policy, seed):
-        """``run_policy(policy, seed)`` inside a run (its arguments checked). Called for every
-        episode the training asks for, so it is written for speed."""
+    def _routed(self, run_policy):
+        """What stands in for ``run_policy`` while the session runs: in one of its runs, the episode is
+        played through the session (``_route``); anywhere else, and with an ``env`` of its own, by
+        ``run_policy`` itself."""
+
+        @functools.wraps(run_policy)
+        def routed(policy, seed=None, env=None):
+            run = _current.run
+            if run is None or run.session is not self or env is not None:
+                return run_policy(policy, seed, env)
+            check_policy(policy)
+            return self._route(run, policy, None if seed is None else check_seed(seed, "seed"))
+
+        return routed
+
+    def _route(self, run, policy, seed):
+        """An episode a run asks for, its arguments checked. Called for every episode the training
+        asks for, so it is written for speed."""
         if self.cancelled:
             raise Cancelled()
-        run = _current.run
         if not self.batched:  # the plain loop; an unseeded episode is the next reset() of the run's env
             self.episodes_played += 1
             if seed is None:
                 env, first_seed = run.own.for_reset()
-                return _play(policy, first_seed, env).total_reward
-            return _play(policy, seed, None).total_reward
+                return episodes.play_from(policy, first_seed, env)
+            return episodes.play_from(policy, seed, make_env())
         if seed is None:  # it starts where the next reset() of the run's own env starts it
             seed = run.own.next_start()
-        params = policy.params if isinstance(policy, CartPoleLinearPolicy) else None
-        if type(params) is np.ndarray and params.dtype == _FLOAT64 and params.shape == _SHAPE:
-            data = params.tobytes()
-            if data not in _FINITE:
-                params, data = _engine.linear_params(policy, CartPoleLinearPolicy)
-        else:
-            params, data = _engine.linear_params(policy, CartPoleLinearPolicy)
+        params = episodes.linear_params(policy)
         if params is None:  # not a linear policy: played here, on its own
             if run.recording:
                 return PLACEHOLDER_REWARD
             self.episodes_played += 1
-            return _play_from(policy, seed, None)
-        key = (class_code(type(policy)), data, seed)
+            return episodes.play_from(policy, seed, make_env())
+        key = (class_code(type(policy)), params.tobytes(), seed)
         if run.memory.asked is not None:
             run.memory.asked.append(key)
         result = self._results.get(key)
@@ -308,10 +307,10 @@ class Session(Replaying):
     def play_round(self):
         """Play every episode asked for or announced and not yet played, in one batch (and step by
         step those of policies that do not follow equation (1))."""
-        batch_keys, params, starts = self.take_requests()
-        self.store(batch_keys, _engine.play_batch(params, starts=starts) if batch_keys else None)
+        batch_keys, params, starts = self._take_requests()
+        self._store(batch_keys, episodes.play_batch(params, starts=starts) if batch_keys else None)
 
-    def take_requests(self):
+    def _take_requests(self):
         """The episodes asked for and not yet played: those of policies that follow equation (1)
         as ``(keys, params (K, 4), starts (K, 4))`` for one batch; the others are played here,
         step by step (or get the TodoNotDone their policy's check raised)."""
@@ -345,10 +344,10 @@ class Session(Replaying):
                 self._played[-1].append(key)
         if not batch_keys:
             return batch_keys, None, None
-        params = np.frombuffer(b"".join([key[1] for key in batch_keys]), dtype=np.float64).reshape(-1, _SHAPE[0])
-        return batch_keys, params, _engine.starts_of([key[2] for key in batch_keys])
+        params = np.frombuffer(b"".join([key[1] for key in batch_keys]), dtype=np.float64).reshape(-1, NUM_OBSERVATIONS)
+        return batch_keys, params, episodes.starts_of([key[2] for key in batch_keys])
 
-    def store(self, batch_keys, rewards):
+    def _store(self, batch_keys, rewards):
         """Keep the rewards of a batch (None: nothing was batched); forget what is old."""
         results = self._results
         if batch_keys:
@@ -364,7 +363,7 @@ class Session(Replaying):
         trusted = self._trusted.get(trust_key)
         if trusted is None:
             try:
-                trusted = _engine.agrees_with_equation_one(policy, params)
+                trusted = episodes.agrees_with_equation_one(policy, params)
             except NotImplementedError as error:  # the TODO stub's TodoNotDone: every caller gets it
                 trusted = error
             if len(self._trusted) > 200_000:
@@ -378,13 +377,6 @@ class Session(Replaying):
         if self._env is None:
             self._env = make_env()
         try:
-            return _play_from(policy, seed, self._env)
+            return episodes.play_from(policy, seed, self._env)
         except Exception as error:  # noqa: BLE001 - raised again where the episode was asked for
             return error
-
-
-def _play_from(policy, start, env):
-    """One episode of ``policy``, plain, from a seed (int) or a start state (its float64 bytes)."""
-    if isinstance(start, bytes):
-        return _play(policy, None, env, start=np.frombuffer(start, dtype=np.float64)).total_reward
-    return _play(policy, start, env).total_reward

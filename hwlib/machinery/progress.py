@@ -1,7 +1,7 @@
-"""A progress bar with a time estimate, for the kit's long cells. Students need not read this.
+"""A progress bar with a time estimate, for the kit's long cells.
 
 In a notebook (an IPython kernel) ``Progress`` shows an ipywidgets bar and a line such as
-"learning-rate sweep: 37 of 160 training runs · 6 s so far · about 20 s left"; elsewhere (pytest,
+"reward landscape: 3,000 of 8,405 episodes · 6 s so far · about 11 s left"; elsewhere (pytest,
 a script, the grader) it shows nothing. ipywidgets is a base dependency of the kit and the bar
 must be one of its widgets anyway (tqdm's notebook bar is built on it too), so no new package.
 
@@ -30,7 +30,7 @@ def in_notebook():
 
 
 class Progress:
-    """``with Progress("learning-rate sweep", 160, "training runs") as bar: ... bar.advance(1) ...``
+    """``with Progress("reward landscape", 8405, "episodes") as bar: ... bar.advance(1) ...``
 
     ``unit`` None leaves the counts out of the line (``detail`` says how far it is). ``title`` None
     shows nothing (the work is done all the same). ``show`` forces the widget on

@@ -1,6 +1,6 @@
 """Record, then replay: how a kit run learns which episodes a call of your code will ask for.
 
-Part of ``hwlib/_batch.py``'s ``Session`` (students need not read this). While a session runs,
+Part of ``batch.py``'s ``Session``. While a session runs,
 ``Session.replaying(module, names, ...)`` puts a wrapper in place of each named function of
 ``module`` (``eval_params`` and ``scalar_finite_diff`` in ``hwlib.policy_search``, where your
 training looks them up). In a run, the outermost wrapped call
@@ -182,18 +182,23 @@ class OwnEnv:
 
 class Replaying:
     """The record-then-replay part of ``Session``, which defines ``_results``, ``_pending``,
-    ``batched``, ``cancelled``, ``on_round``, ``_threaded``, ``_stopped_by`` and ``_current_run``;
-    a run has ``recording``, ``recorded``, ``replaying``, ``evaluations``, ``memory`` and its
-    random state."""
+    ``batched``, ``cancelled``, ``on_round``, ``_threaded``, ``_stopped_by``, ``_current_run`` and
+    ``_routed``; a run has ``recording``, ``recorded``, ``replaying``, ``evaluations``, ``memory``
+    and its random state."""
 
     @contextlib.contextmanager
     def replaying(self, module, names, counted=None, params_argument="params"):
-        """While the session runs, ``module.<name>`` (for each of ``names``) is recorded, then
+        """While the session runs, ``module.run_policy`` plays its episodes through the session
+        (``Session._routed``), and ``module.<name>`` (for each of ``names``) is recorded, then
         replayed, in the session's runs (batched only). Calls of ``counted`` (one of the names)
         advance the progress and may be foreseen: its argument ``params_argument`` holds the
-        policy's parameters, its other arguments decide the seeds."""
-        originals = {name: getattr(module, name) for name in names}
+        policy's parameters, its other arguments decide the seeds. Afterwards the module holds
+        its own functions again."""
+        originals = {name: getattr(module, name) for name in (*names, "run_policy")}
         for name, function in originals.items():
+            if name == "run_policy":
+                setattr(module, name, self._routed(function))
+                continue
             signature = inspect.signature(function) if name == counted else None
             setattr(module, name, self._replayed(function, signature, params_argument))
         try:
@@ -318,7 +323,7 @@ def _learn(memory, call, asked):
     if any(key[1] != data or key[0] != asked[0][0] for key in asked):
         memory.refuted = True  # it played other parameters than its own, or several policy classes
         return
-    unseeded = {isinstance(key[2], bytes) for key in asked}  # a start state, not a seed: see _batch._route
+    unseeded = {isinstance(key[2], bytes) for key in asked}  # a start state, not a seed: see batch.Session._route
     if len(unseeded) > 1:
         memory.refuted = True  # seeded and unseeded episodes in one call
         return
