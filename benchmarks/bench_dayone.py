@@ -15,7 +15,7 @@
    CPU seconds in the instructor's edition (grading the solutions, hidden inputs included) and in
    a student edition whose TODOs hold the solutions (the answer key, visible checks only: what a
    student who is done waits for). The target is 3 s per TODO on 2 cores.
-3. **The untouched student edition's ``pytest``** (``tests/day_one.py``'s day-one edition, every
+3. **The untouched student edition's ``pytest``** (``tests/instructor/day_one.py``'s day-one edition, every
    test as the student runs them): seconds and lines printed (it took 13.5 min and printed 3,400
    lines before its failures named their TODO and its browser tests waited for errors they could
    not see).
@@ -161,7 +161,7 @@ def bench_checks(rounds):
 def bench_untouched_pytest():
     import subprocess
 
-    sys.path.insert(0, str(KIT / "tests"))
+    sys.path.insert(0, str(KIT / "tests" / "instructor"))
     from day_one import day_one_edition, kit_env
 
     with tempfile.TemporaryDirectory(prefix="bench-dayone-") as scratch:
@@ -177,7 +177,7 @@ def bench_untouched_pytest():
 def bench_done_path():
     import subprocess
 
-    sys.path.insert(0, str(KIT / "tests"))
+    sys.path.insert(0, str(KIT / "tests" / "instructor"))
     from day_one import kit_env, student_python
     from hwtools.todos import TODO_BY_ID
     from instructor.release import build_student_edition

@@ -18,7 +18,7 @@ prints in one run the time of ``MultiClassLogisticRegressionClassifier.fit``
 | line                          | the code in the TODO blocks                                                     |
 |-------------------------------|---------------------------------------------------------------------------------|
 | kit solution                  | the instructor's solutions: one matrix-vector step per class                   |
-| natural ``<todo>_<style>``    | one solution of ``tests/natural_solutions/`` in place of the kit's, the rest the kit's |
+| natural ``<todo>_<style>``    | one solution of ``tests/grader/natural_solutions/`` in place of the kit's, the rest the kit's |
 | scikit-learn, multinomial     | ``LogisticRegression()`` (lbfgs, L2, C=1), up to 1000 iterations               |
 | scikit-learn, one-vs-rest     | ``OneVsRestClassifier(LogisticRegression())``, same settings                   |
 
@@ -112,7 +112,7 @@ ALLOWED_GAP = 0.02
 
 def logreg_with(todo, body, name):
     """A fresh copy of ``hwlib/logreg.py`` whose TODO ``todo`` block holds ``body`` (the natural solution
-    ``name``), indented like the block, as tests/natural_solutions/README.md describes."""
+    ``name``), indented like the block, as tests/grader/natural_solutions/README.md describes."""
     lines = Path(logreg.__file__).read_text(encoding="utf-8").split("\n")
     begin = next(i for i, line in enumerate(lines) if line.strip() == f"### BEGIN SOLUTION {todo}")
     end = next(i for i, line in enumerate(lines) if i > begin and line.strip() == f"### END SOLUTION {todo}")

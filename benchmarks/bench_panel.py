@@ -149,7 +149,7 @@ WATCH_JS = """(element) => {
 
 
 def bench_browser(num_keys, num_bursts):
-    sys.path.insert(0, str(KIT_ROOT / "tests"))
+    sys.path.insert(0, str(KIT_ROOT / "tests" / "browser"))
     import nbformat
     from lab_under_test import CHROMIUM_ARGS, chromium_path, new_page, open_notebook, running_jupyterlab, wait_for_idle_kernel
     from playwright.sync_api import sync_playwright

@@ -40,7 +40,7 @@ LEARNING_RATE = 0.00065
 # TRAINING_SEED, so with eval_params as its docstring says every rate it shows at 100% converges in
 # the 1.3.3 check (the notebook's run). A rate between two of them usually does too, not always:
 # 2**-10 converges only at iteration 9 (benchmarks/bench_cartpole.py --grid counts them;
-# tests/test_policy_search.py keeps both true).
+# tests/unit/test_policy_search.py keeps both true).
 SWEEP_LEARNING_RATES = (1e-4, 3e-4, 3.5e-4, 4e-4, 6e-4, 8e-4, 1e-3, 1.2e-3, 2e-3, 5e-3, 1e-2)
 SWEEP_NUM_SEEDS = 20
 MAX_MINUTES = 10

@@ -17,7 +17,7 @@ actual value, where they differ and the tolerance (the same fields as every repo
   read the same in both editions, and the stored outputs are stable for nbval.
 
 On the visible inputs its verdicts are the instructor's grade's whenever the other TODOs a check
-runs are right (``tests/test_check.py`` compares them on wrong solutions); where one is wrong, the
+runs are right (``tests/grader/test_check.py`` compares them on wrong solutions); where one is wrong, the
 check names it and keeps the points the grade would give.
 
 The grader reads the files on disk, so a check sees the code as last saved, even when the

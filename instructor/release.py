@@ -25,9 +25,8 @@ edition
   Markdown cell it becomes ``YOUR ANSWER HERE``; every notebook's outputs, execution counts,
   execution timings and stored widget state are cleared (``instructor/notebooks.py``);
 * instructor-only files (``INSTRUCTOR_ONLY`` in ``instructor/kit.py``: ``instructor/`` with this
-  tool, the hidden checks and the wrong solutions; the tests of this tool and of the grader's
-  proof and their fixtures; the benchmarks whose reference loops spell out answers) are left out, and so are
-  the top-level tests marked ``@pytest.mark.hidden`` in the other test files;
+  tool, the hidden checks and the wrong solutions; every folder of ``tests/`` but the student's own
+  tests, ``STUDENT_TESTS``; the benchmarks whose reference loops spell out answers) are left out;
 * ``pyproject.toml`` runs the notebooks with ``--nbval-lax`` (stored notebooks have no outputs
   to compare, so cells must only run without error), and the README gets a short note for
   students; README parts between ``<!-- BEGIN INSTRUCTOR ONLY -->`` and
@@ -54,14 +53,14 @@ from pathlib import Path
 
 from hwtools.todos import TODO_BY_ID
 from instructor import gradescope_bundle
-from instructor.given_files import drop_hidden_tests, transform_pyproject, transform_readme
-from instructor.kit import (HOMEWORK_FOLDERS, INSTRUCTOR_ONLY, ReleaseError, file_blocks, find_blocks, is_instructor_only,
-                            kit_files, read_text)
+from instructor.given_files import transform_pyproject, transform_readme
+from instructor.kit import (HOMEWORK_FOLDERS, INSTRUCTOR_ONLY, STUDENT_TESTS, ReleaseError, file_blocks, find_blocks,
+                            is_instructor_only, kit_files, read_text)
 from instructor.notebooks import transform_notebook
 from instructor.stubs import NOT_DONE_MODULE, transform_python
 
 __all__ = [  # what the tests and the other tools take from here (the pieces live in the modules named above)
-    "ANSWER_KEY", "HOMEWORK_FOLDERS", "INSTRUCTOR_ONLY", "ReleaseError", "build_student_edition", "file_blocks",
+    "ANSWER_KEY", "HOMEWORK_FOLDERS", "INSTRUCTOR_ONLY", "STUDENT_TESTS", "ReleaseError", "build_student_edition", "file_blocks",
     "find_blocks", "is_instructor_only", "kit_files", "main", "student_files", "transform_notebook", "transform_python",
 ]
 
@@ -91,8 +90,6 @@ def student_files(source, keep=frozenset(), replace=None):
             pass  # not text: copied as it is
         elif name.endswith(".py") and name.startswith(HOMEWORK_FOLDERS):
             text = transform_python(text, name, keep, file_replace, require_not_done=require_not_done)
-        elif name.endswith(".py") and name.startswith("tests/"):
-            text = drop_hidden_tests(text, name)
         elif name.endswith(".ipynb"):
             text = transform_notebook(text, name, keep, file_replace)
         elif name == "pyproject.toml":

@@ -1,6 +1,5 @@
-"""Fixtures shared by the unit tests."""
-
-import sys
+"""Fixtures shared by the unit tests of the homework (tests/unit/, which the student edition ships) and of the
+kit's given code (tests/library/)."""
 
 import numpy as np
 import pytest
@@ -29,10 +28,3 @@ def balancing_params():
     """Four weights with which the linear policy balances for all 500 steps from seeds 0-4."""
     return find_balancing_params()
 
-
-@pytest.fixture(autouse=True)
-def _reap_adopted_orphans():
-    """After every test: reap the pool users' zombies this process adopted (``process_watch``)."""
-    yield
-    if "process_watch" in sys.modules:
-        sys.modules["process_watch"].reap_adopted_orphans()

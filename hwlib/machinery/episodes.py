@@ -90,7 +90,7 @@ def play(params, starts, c):
 
     The step is gymnasium's own vectorised CartPole step (``CartPoleVectorEnv.step``: the same
     equations, constants and order of operations), without its per-step checks and auto-reset,
-    and in place: the rewards are those of ``env.step``, bit for bit (``tests/test_cartpole.py``
+    and in place: the rewards are those of ``env.step``, bit for bit (``tests/unit/test_cartpole.py``
     compares it with gymnasium's vector environment and with the one-by-one loop). An episode
     that has ended is still stepped (its reward is kept) until a quarter of those stepped have
     ended; then the rest go on alone.

@@ -245,7 +245,7 @@ def parse(source):
     """``ast.parse(source)``, one thread at a time. The grader judges a submission's TODOs in threads,
     and CPython 3.11 keeps the AST builder's recursion count per interpreter: two threads parsing at
     once can fail with "SystemError: AST constructor recursion depth mismatch" (CPython gh-106905;
-    seen in CI, tests/test_protocol.py reproduces it)."""
+    seen in CI, tests/grader/test_protocol.py reproduces it)."""
     with _PARSING:
         return ast.parse(source)
 

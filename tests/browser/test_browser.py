@@ -3,7 +3,7 @@
 nbval proves that the notebooks execute; this proves that the slider panel renders and responds
 in JupyterLab (a widget front end that does not match the kernel's ipywidgets shows "Error
 displaying widget" or "model not found" instead). The test starts JupyterLab from this very
-Python environment (``tests/lab_under_test.py``) on a copy of the notebooks, in a 1280 x 720
+Python environment (``tests/browser/lab_under_test.py``) on a copy of the notebooks, in a 1280 x 720
 window with the file browser open, opens each notebook, clears its outputs and runs all cells
 from the Run menu. Then it works the slider panel like a student:
 
@@ -65,7 +65,7 @@ from lab_under_test import (  # noqa: F401  (the notebook helpers are used here 
 
 pytestmark = [pytest.mark.browser, pytest.mark.timeout(1500)]
 
-KIT_ROOT = Path(__file__).resolve().parent.parent
+KIT_ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOKS = KIT_ROOT / "notebooks"
 P1_NOTEBOOK = "p1_cartpole_finite_difference.ipynb"
 P2_NOTEBOOK = "p2_food_cutting_logistic_regression.ipynb"

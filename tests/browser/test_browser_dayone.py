@@ -12,8 +12,7 @@
 
 Error outputs are read by their text, whatever mime type JupyterLab renders them with. The kit
 under test is imported by the kernels through ``PYTHONPATH`` (the server's environment), so the
-untouched edition's stubs are what runs. Instructor-only (marked ``hidden``): they build the
-student edition. Chromium is Debian's; without it the tests are skipped,
+untouched edition's stubs are what runs. Chromium is Debian's; without it the tests are skipped,
 except in CI (CI=true), where that is a failure. ``pytest -m "not browser"`` leaves them out.
 """
 
@@ -31,7 +30,7 @@ from test_browser import ARTIFACTS, browser, chromium, menu, screenshot_on_failu
 
 pytestmark = pytest.mark.browser
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 P1, P2 = "p1_cartpole_finite_difference.ipynb", "p2_food_cutting_logistic_regression.ipynb"
 TIMEOUT_MS = 240_000  # one notebook's Run All on a busy 2-core machine
 CELL_TIMEOUT_MS = 120_000  # one cell
@@ -134,7 +133,6 @@ def first_line_names_a_todo(cell):
 # --- the tests ---------------------------------------------------------------------------------
 
 
-@pytest.mark.hidden  # instructor-only: it builds the student edition
 def test_quick_start_serves_the_kit_so_hwlib_is_one_click_away(page, day_one_lab):
     with screenshot_on_failure(page, "dayone-quick-start"):
         open_notebook(page, day_one_lab, P1)
@@ -160,7 +158,6 @@ def test_quick_start_serves_the_kit_so_hwlib_is_one_click_away(page, day_one_lab
     shut_kernels(day_one_lab)
 
 
-@pytest.mark.hidden
 def test_day_one_run_all_stops_at_the_first_todo_and_says_which_on_screen(page, day_one_lab):
     with screenshot_on_failure(page, "dayone-run-all"):
         open_notebook(page, day_one_lab, P1)
@@ -178,7 +175,6 @@ def test_day_one_run_all_stops_at_the_first_todo_and_says_which_on_screen(page, 
     shut_kernels(day_one_lab)
 
 
-@pytest.mark.hidden
 def test_day_one_every_cell_that_needs_a_todo_names_it_on_its_first_line(page, day_one_lab):
     """Shift+Enter through every code cell of problem 1, as a student steps through on day one."""
     with screenshot_on_failure(page, "dayone-step-through"):
@@ -207,7 +203,6 @@ def test_day_one_every_cell_that_needs_a_todo_names_it_on_its_first_line(page, d
     shut_kernels(day_one_lab)
 
 
-@pytest.mark.hidden  # the instructor's edition's solutions
 def test_check_cells_show_every_visible_check_passing_in_the_instructors_edition(page, instructor_lab):
     with screenshot_on_failure(page, "dayone-check-cells"):
         open_notebook(page, instructor_lab, P2)

@@ -11,7 +11,7 @@ change event (or click) until the new picture has loaded and the caption names t
 The times are printed and written to ``test-artifacts/landscape_redraw.txt`` (the README's
 number); no wall-clock assertion.
 
-JupyterLab and Chromium are started as in ``tests/test_browser.py`` (``tests/lab_under_test.py``),
+JupyterLab and Chromium are started as in ``tests/browser/test_browser.py`` (``tests/browser/lab_under_test.py``),
 whose fixtures and notebook helpers this module uses.
 """
 

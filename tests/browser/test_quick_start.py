@@ -22,7 +22,7 @@ from pathlib import Path
 
 from lab_under_test import free_port
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 
 
 def quick_start_commands():

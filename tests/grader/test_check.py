@@ -8,9 +8,6 @@
 * an interrupt ends the grader's subprocess;
 * in a kernel, a NameError for a value a cell stopped at a TODO could not make names that TODO;
 * pytest's report of a failure names its TODO first.
-
-The tests marked ``hidden`` need the instructor's edition (its solutions, wrong solutions and
-reference); the student edition leaves them out.
 """
 
 from __future__ import annotations
@@ -29,7 +26,7 @@ from hwtools.check_cell import CheckError, check_lines, grade_todo
 from hwtools.not_done import not_done_in_text, not_done_todo, untouched_todos
 from hwtools.notebook import assigned_names
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 WRONG = KIT / "instructor" / "wrong_solutions"
 
 
@@ -118,7 +115,6 @@ def test_code_that_cannot_run_says_why_and_a_manual_todo_says_who_grades_it():
     assert said.startswith("TODO 1.1.2 (") and "graded by hand: report: the table" in said
 
 
-@pytest.mark.hidden  # the instructor's edition: every TODO solved
 def test_untouched_todos_reads_the_stubs(tmp_path):
     assert untouched_todos(KIT) == []  # the instructor's edition holds every solution
     (tmp_path / "hwlib").mkdir()
@@ -151,7 +147,6 @@ def test_assigned_names_are_the_cells_top_level_names():
 # --------------------------------------------------------------------------------------------
 
 
-@pytest.mark.hidden  # the instructor's edition: every TODO solved
 def test_the_instructors_edition_passes_its_visible_checks():
     from hwtools.grade.checks import BEHAVIOURS_BY_TODO
 
@@ -188,7 +183,6 @@ def wrong_edition(tmp_path_factory):
     return kit
 
 
-@pytest.mark.hidden  # needs the instructor's wrong solutions and reference
 @pytest.mark.parametrize("todo", ["2.2.1", "1.2.1"])
 def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_inputs(wrong_edition, todo):
     from hwtools.grade import Grader
@@ -205,7 +199,6 @@ def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_in
     assert any(line.startswith("  FAIL") for line in lines) and any("expected:" in line for line in lines)
 
 
-@pytest.mark.hidden  # needs the instructor's wrong solutions and reference
 def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition, tmp_path):
     """1.2.1 and 2.2.1 wrong, everything else right: the preview runs the student's own 1.2.1 in
     1.3.2 and 1.3.3 (and 2.2.1 in 2.2.2-2.3.1), so their checks may fail there; they are shown as
@@ -240,7 +233,6 @@ def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition
     assert "used the reference's code for TODOs 1.1.1, 1.2.1, 1.3.1, 1.3.2" in graded_notes
 
 
-@pytest.mark.hidden  # the check of one TODO names the TODO at fault too (it judges the TODOs it calls)
 def test_a_check_cell_names_the_todo_at_fault(wrong_edition):
     lines = check_lines(grade_todo("1.3.2", kit=wrong_edition))
     assert "probably caused by TODO 1.2.1, which fails its own check" in " ".join(" ".join(lines[:2]).split()), lines

@@ -6,7 +6,7 @@ student's preview and the instructor's grade.
   to tell expected and actual apart, the relative difference, the tolerance; the same words in
   the text report, the class's Markdown feedback and Gradescope's.
 * The tolerances on the numbers that correct and wrong formulas give (no sandbox).
-* Every natural solution (``tests/natural_solutions/``, CRLF copies saved as whole CRLF kits)
+* Every natural solution (``tests/grader/natural_solutions/``, CRLF copies saved as whole CRLF kits)
   earns every point; every wrong one (``instructor/wrong_solutions/``) keeps at most 30% of its
   TODO and nothing outside it; the cases the handout leaves open get the README's verdict.
 * Preview = grade: the student edition's ``python -m hwtools.grade`` (answer key) and the
@@ -34,8 +34,8 @@ from hwtools.check_cell import check_lines
 from hwtools.grade.feedback import failure_words, render
 from test_grading import full_points, parse_wrong_solution, points
 
-KIT = Path(__file__).resolve().parents[1]
-NATURAL = KIT / "tests" / "natural_solutions"
+KIT = Path(__file__).resolve().parents[2]
+NATURAL = Path(__file__).resolve().parent / "natural_solutions"
 WRONG = KIT / "instructor" / "wrong_solutions"
 TIME_LIMIT = 60.0  # per TODO's run: the preview runs the student's own code for the other TODOs too
 MOST_KEPT = 0.3  # what a wrong formula may keep of its TODO
@@ -391,7 +391,7 @@ def test_crlf_copies_are_byte_for_byte_crlf_and_cover_every_graded_todo():
 
 @pytest.mark.parametrize("path", [path for path in natural_solutions() if is_crlf(path)], ids=lambda path: path.stem)
 def test_natural_solution_saved_with_crlf_earns_every_point(grader, layout, tmp_path, path):
-    """(tests/test_grading.py grades every natural solution saved as the kit saves files.)"""
+    """(tests/grader/test_grading.py grades every natural solution saved as the kit saves files.)"""
     todo = path.name.split("_")[0]
     kit = write_kit(layout, tmp_path / "kit", {todo: natural_body(path)}, crlf=is_crlf(path))
     result = grader.grade(kit)

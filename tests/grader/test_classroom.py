@@ -31,10 +31,9 @@ from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks
 from hwtools.grade.checks.verdicts import show
 from hwtools.grade.gradebook import gradebook_header
 from hwtools.grade.grader import read_answer_key
+import test_grading as proof  # the grader's proof builds the wrong solutions and cheats
 
-KIT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(KIT / "tests"))
-import test_grading as proof  # noqa: E402 - the grader's proof builds the wrong solutions and cheats
+KIT = Path(__file__).resolve().parents[2]
 
 TIME_LIMIT = 15.0  # per TODO's run; the endless loop costs it once
 JOBS = 2
@@ -599,7 +598,7 @@ def test_odd_ids_long_ids_and_a_block_too_deep_to_compile_each_get_their_own_row
 
 
 def test_a_class_of_big_answers_keeps_the_grader_under_600_mib(layout, tmp_path, answer_key):
-    """Submissions that answer every case with 8 MB (tests/cheats/big_answers.txt): the grader once
+    """Submissions that answer every case with 8 MB (tests/grader/cheats/big_answers.txt): the grader once
     kept every run's answers to the class's end (three of them: 1.3 GB). Graded in a fresh process
     on 2 jobs; its peak memory (VmHWM, the reference servers are processes of their own) stays low."""
     cheat = proof.parse_cheat(proof.CHEATS / "big_answers.txt")

@@ -21,12 +21,12 @@ from pathlib import Path
 
 import pytest
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 CASES = [
-    "tests/test_sandbox.py::test_no_network[user]",
-    "tests/test_sandbox.py::test_the_user_sandbox_runs_as_a_user_of_its_own_on_a_kit_only_it_can_read",
-    "tests/test_gradescope.py::test_a_correct_submission_earns_every_point[docker]",
-    "tests/test_gradescope.py::test_a_submission_cannot_borrow_the_reference_from_another_run_s_kit[docker]",
+    "tests/grader/test_sandbox.py::test_no_network[user]",
+    "tests/grader/test_sandbox.py::test_the_user_sandbox_runs_as_a_user_of_its_own_on_a_kit_only_it_can_read",
+    "tests/grader/test_gradescope.py::test_a_correct_submission_earns_every_point[docker]",
+    "tests/grader/test_gradescope.py::test_a_submission_cannot_borrow_the_reference_from_another_run_s_kit[docker]",
 ]
 
 pytestmark = pytest.mark.timeout(1800)

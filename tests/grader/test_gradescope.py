@@ -6,7 +6,7 @@ not run), and each ``results.json`` is checked against a schema written from
 
 Two containers (``containers.py``): this machine, where bubblewrap works, and Docker's, where a
 ``bwrap`` that fails as Docker's seccomp profile makes it fail comes first on PATH, so that the
-grader falls back to a user of its own per run (``tests/cheats/gradescope/``: the attacks that
+grader falls back to a user of its own per run (``tests/grader/cheats/gradescope/``: the attacks that
 got through the old fallback fail there: the results.json overwrite, /tmp kit borrowing, root).
 """
 
@@ -31,13 +31,12 @@ from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, blocks, kits, write_an
 from hwtools.grade.grader import read_answer_key
 from hwtools.grade.gradescope_autograder import BUNDLE_MARKER
 
-KIT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(KIT / "tests"))
-import containers  # noqa: E402
-import test_grading as proof  # noqa: E402 - the grader's proof builds the wrong solutions and cheats
-from process_watch import live_processes  # noqa: E402
+import containers
+import test_grading as proof  # the grader's proof builds the wrong solutions and cheats
+from process_watch import live_processes
 
-ATTACKS = KIT / "tests" / "cheats" / "gradescope"
+KIT = Path(__file__).resolve().parents[2]
+ATTACKS = Path(__file__).resolve().parent / "cheats" / "gradescope"
 
 TIME_LIMIT = 20
 pytestmark = pytest.mark.timeout(900)
@@ -255,7 +254,7 @@ def test_a_correct_submission_earns_every_point(bundle, layout, tmp_path, contai
 
 
 def attack(name, layout, answer_key):
-    """A submission maker for the attack ``tests/cheats/gradescope/NAME.txt``, and its cheat."""
+    """A submission maker for the attack ``tests/grader/cheats/gradescope/NAME.txt``, and its cheat."""
     cheat = proof.parse_cheat(ATTACKS / f"{name}.txt")
     return (lambda folder: proof.build_cheat(layout, cheat, folder, answer_key)), cheat
 

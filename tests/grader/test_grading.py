@@ -28,9 +28,9 @@ from hwtools.grade.feedback import render
 from cheats import leak_search
 from process_watch import live_processes
 
-KIT = Path(__file__).resolve().parents[1]
-CHEATS = KIT / "tests" / "cheats"
-NATURAL = KIT / "tests" / "natural_solutions"
+KIT = Path(__file__).resolve().parents[2]
+CHEATS = Path(__file__).resolve().parent / "cheats"
+NATURAL = Path(__file__).resolve().parent / "natural_solutions"
 WRONG = KIT / "instructor" / "wrong_solutions"
 TIME_LIMIT = 20.0  # per TODO's run; the endless loop costs this once
 AUTO_TODOS = [todo.id for todo in TODO_BY_ID.values() if todo.auto]

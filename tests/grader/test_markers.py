@@ -8,8 +8,6 @@ any Jupyter front end saves it, and the grader and the release tool see the same
   the same verdicts as the LF one;
 * the release tool: the student edition built from a checkout with Windows line ends (or with
   BOMs) is byte-identical to the one built from LF files.
-
-Instructor-only: the student edition leaves this file out (it grades against the reference).
 """
 
 from __future__ import annotations
@@ -29,7 +27,7 @@ from hwtools import markers
 from hwtools.grade import AUTO_POINTS, TODO_BY_ID, blocks, kits
 from instructor.release import ANSWER_KEY, build_student_edition, kit_files, transform_notebook
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 AUTO_TODOS = sorted(todo.id for todo in TODO_BY_ID.values() if todo.auto)
 
 pytestmark = pytest.mark.timeout(900)

@@ -24,9 +24,9 @@ import sys
 import sysconfig
 from pathlib import Path
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 
-STAND_IN_TODO = '''"""TodoNotDone: what an untouched TODO's stub raises (a stand-in written by tests/day_one.py)."""
+STAND_IN_TODO = '''"""TodoNotDone: what an untouched TODO's stub raises (a stand-in written by tests/instructor/day_one.py)."""
 
 import sys
 

@@ -1,6 +1,4 @@
 """The release tool: the student edition of this kit, and the rules on a small made-up kit.
-
-Instructor-only: the student edition leaves this file out.
 """
 
 from __future__ import annotations
@@ -21,16 +19,18 @@ import pytest
 from instructor.release import (
     ANSWER_KEY,
     INSTRUCTOR_ONLY,
+    STUDENT_TESTS,
     ReleaseError,
     build_student_edition,
     file_blocks,
+    is_instructor_only,
     kit_files,
     student_files,
     transform_notebook,
     transform_python,
 )
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 MARKER = re.compile(r"(BEGIN|END) SOLUTION|### HINT:|### STUB:")
 
 
@@ -67,9 +67,9 @@ def test_building_twice_gives_byte_identical_output(edition, tmp_path):
 def test_instructor_files_are_left_out_and_the_rest_is_there(edition):
     names = set(_tree(edition))
     for name in names:
-        assert not any(name == p or (p.endswith("/") and name.startswith(p)) for p in INSTRUCTOR_ONLY), name
-    assert "instructor/release.py" not in names and "tests/test_release.py" not in names and "tests/test_grading.py" not in names
-    expected = {name for name in kit_files(REPO) if not any(name == p or (p.endswith("/") and name.startswith(p)) for p in INSTRUCTOR_ONLY)}
+        assert not is_instructor_only(name), name
+    assert "instructor/release.py" not in names and "tests/instructor/test_release.py" not in names and "tests/grader/test_grading.py" not in names
+    expected = {name for name in kit_files(REPO) if not is_instructor_only(name)}
     assert names == expected | {ANSWER_KEY}
     assert not any(name.startswith("instructor/") for name in names)
     for needed in ("hwtools/grade/__init__.py", ANSWER_KEY, "hwlib/__init__.py", "pyproject.toml", "requirements.txt", "README.md", "conftest.py"):
@@ -122,19 +122,18 @@ def test_library_blocks_become_todo_stubs(edition):
 
 
 def test_no_answer_reaches_the_students_another_way(edition):
-    """The gradient of 2.1.1 and the labels of 2.3.1 appear nowhere: not in docstrings, hidden
-    tests, benchmarks or notebooks."""
-    leaks = re.compile(r"\.T *@|== *class_index|y_i - p_i|y - \\sigma|targets - |labels - sigmoid|mark\.hidden")
+    """The gradient of 2.1.1 and the labels of 2.3.1 appear nowhere: not in docstrings, tests,
+    benchmarks or notebooks."""
+    leaks = re.compile(r"\.T *@|== *class_index|y_i - p_i|y - \\sigma|targets - |labels - sigmoid")
     for name in _tree(edition):
         if name.endswith((".py", ".ipynb", ".md", ".txt")):
             text = (edition / name).read_text(encoding="utf-8")
             assert not leaks.search(text), f"{name}: {leaks.search(text)[0]!r}"
-    student_tests = (edition / "tests" / "test_logreg.py").read_text()
-    assert "def test_gradient_matches_the_closed_form" not in student_tests
-    assert "def test_first_fit_step_is_the_summed_gradient_of_equation_7" not in student_tests
+    student_tests = (edition / "tests" / "unit" / "test_logreg.py").read_text()
     assert "def test_gradient_check_passes_for_the_analytic_gradient" in student_tests
-    source_tests = (REPO / "tests" / "test_logreg.py").read_text()
-    assert leaks.search(source_tests)  # the check above can fail: the instructor's tests do show it
+    solution_tests = (REPO / "tests" / "instructor" / "test_solutions.py").read_text()
+    assert "def test_gradient_matches_the_closed_form" in solution_tests and leaks.search(solution_tests)  # it can fail
+    assert not (edition / "tests" / "instructor").exists()
 
 
 def test_module_level_block_becomes_none_and_the_module_still_imports(edition):
@@ -193,17 +192,18 @@ def test_pyproject_runs_the_notebooks_lax_and_readme_has_the_student_note(editio
     assert "INSTRUCTOR ONLY" not in readme
 
 
-# The student's own tests: those of what a student writes, the "not done yet" messages, and the notebooks.
-STUDENT_TESTS = {"tests/conftest.py", "tests/test_cartpole.py", "tests/test_finite_diff.py", "tests/test_policy_search.py",
-                 "tests/test_logreg.py", "tests/test_todo.py"}
-
-
 def test_the_student_edition_ships_the_tests_of_the_homework_only(edition):
-    """A new test file is instructor-only or a student's test by decision (instructor/kit.py), not by default."""
+    """The student's tests are tests/unit/ (with the fixture they share, tests/conftest.py), shipped as they
+    are; every other folder of tests/ stays with the instructor, a new one too (instructor/kit.py)."""
+    tests = [name for name in kit_files(REPO) if name.startswith("tests/")]
     shipped = {name for name in _tree(edition) if name.startswith("tests/")}
-    assert shipped == STUDENT_TESTS
-    left_out = {"instructor", "day_one", "process_watch", "containers", "lab_under_test"}
-    for name in shipped:  # none imports or runs what the edition leaves out (tests/test_student_path.py runs them)
+    assert shipped == {name for name in tests if name == "tests/conftest.py" or name.startswith("tests/unit/")}
+    assert all((edition / name).read_bytes() == (REPO / name).read_bytes() for name in shipped)
+    for module in ("cartpole", "finite_diff", "policy_search", "logreg", "todo"):  # a test file per homework module
+        assert f"tests/unit/test_{module}.py" in shipped, module
+    left_out = {"instructor"} | {Path(name).stem for name in tests if name.endswith(".py") and name not in shipped}
+    assert {"day_one", "process_watch", "containers", "lab_under_test", "test_grading"} <= left_out
+    for name in shipped:  # none imports or runs what the edition leaves out (tests/instructor/test_student_path.py runs them)
         text = (edition / name).read_text()
         imported = {alias.name.split(".")[0] for node in ast.walk(ast.parse(text)) if isinstance(node, ast.Import)
                     for alias in node.names}
@@ -320,10 +320,13 @@ def make_kit(root, module=MODULE, notebook_cells=NOTEBOOK_CELLS):
         "hwlib/mod.py": module,
         "instructor/release.py": "# the tool\n",
         "notebooks/nb.ipynb": _notebook(notebook_cells),
-        "tests/test_mod.py": "def test_x():\n    pass\n",
+        "tests/conftest.py": "import pytest\n",
+        "tests/unit/test_mod.py": "def test_x():\n    pass\n",
+        "tests/test_loose.py": "def test_y():\n    pass\n",
+        "tests/newkind/test_new.py": "def test_z():\n    pass\n",
         "instructor/hidden_checks/__init__.py": "HIDDEN_SEED = 1\n",
         "instructor/wrong_solutions/mistake.txt": "# todo: 1.1.1\n",
-        "tests/test_release.py": "def test_release():\n    pass\n",
+        "tests/instructor/test_release.py": "def test_release():\n    pass\n",
         "data/README.md": "where the data goes\n",
         "data/data.npz": "not really\n",
         "data/audio/0_apple.wav": "not really\n",
@@ -349,7 +352,8 @@ def test_made_up_kit_student_edition(tmp_path):
     source = make_kit(tmp_path / "src")
     build_student_edition(source, tmp_path / "out", answer_key=False)
     names = sorted(_tree(tmp_path / "out"))
-    assert names == ["README.md", "data/README.md", "hwlib/__init__.py", "hwlib/mod.py", "notebooks/nb.ipynb", "pyproject.toml", "tests/test_mod.py"]
+    assert names == ["README.md", "data/README.md", "hwlib/__init__.py", "hwlib/mod.py", "notebooks/nb.ipynb", "pyproject.toml",
+                     "tests/conftest.py", "tests/unit/test_mod.py"]  # of tests/, the student's folder only
     module = (tmp_path / "out" / "hwlib" / "mod.py").read_text()
     assert 'RATE = None  # TODO 1.3.3: ' in module
     assert ("    x = np.asarray(x)\n    ### BEGIN TODO 1.1.1\n    # TODO 1.1.1: multiply by two\n    pass\n"
@@ -421,33 +425,6 @@ def test_notebook_marker_errors_name_the_file_line_and_cell(tmp_path):
         build_student_edition(source2, tmp_path / "out2")
 
 
-def test_hidden_tests_in_visible_test_files_are_dropped(tmp_path):
-    source = make_kit(tmp_path / "src")
-    (source / "tests" / "test_mod.py").write_text(
-        "import pytest\n\n\ndef test_visible():\n    pass\n\n\n"
-        "@pytest.mark.todo(\"1.1.1\")\n@pytest.mark.hidden  # instructor-only\ndef test_secret():\n    assert 2 + 2 == 4\n\n\n"
-        "def test_also_visible():\n    pass\n\n\n@pytest.mark.hidden\nclass TestSecret:\n    def test_x(self):\n        pass\n"
-    )
-    build_student_edition(source, tmp_path / "out", answer_key=False)
-    student = (tmp_path / "out" / "tests" / "test_mod.py").read_text()
-    assert student == "import pytest\n\n\ndef test_visible():\n    pass\n\n\ndef test_also_visible():\n    pass\n"
-
-
-@pytest.mark.parametrize(
-    ("text", "line"),
-    [
-        ("import pytest\n\npytestmark = pytest.mark.hidden\n", 3),
-        ("import pytest\n\n\nclass TestX:\n    @pytest.mark.hidden\n    def test_x(self):\n        pass\n", 5),
-    ],
-    ids=["module-level", "method"],
-)
-def test_hidden_marks_that_cannot_be_dropped_are_an_error(tmp_path, text, line):
-    source = make_kit(tmp_path / "src")
-    (source / "tests" / "test_mod.py").write_text(text)
-    with pytest.raises(ReleaseError, match=rf"tests/test_mod\.py:{line}: only top-level tests can be marked hidden"):
-        build_student_edition(source, tmp_path / "out")
-
-
 def test_replacement_must_match_the_blocks(tmp_path):
     text = "def f():\n    ### BEGIN SOLUTION 1.1.1\n    return 1\n    ### END SOLUTION 1.1.1\n"
     assert transform_python(text, "m.py", replace={"1.1.1": "return 2"}) == (
@@ -470,7 +447,7 @@ def test_command_line_refuses_to_overwrite_and_replaces_an_earlier_edition_with_
         return subprocess.run([*command, *args, "--source", str(source)], cwd=tmp_path, env=env, capture_output=True, text=True)
 
     first = run(str(tmp_path / "out"))
-    assert first.returncode == 0 and "student edition: 7 files" in first.stdout
+    assert first.returncode == 0 and "student edition: 8 files" in first.stdout
     again = run(str(tmp_path / "out"))
     assert again.returncode == 1 and "not empty (pass --force" in again.stderr
     (tmp_path / "out" / "stale.txt").write_text("from an earlier build\n")
@@ -640,9 +617,9 @@ def _cycles(graph):
 
 
 def test_every_instructor_only_entry_is_a_file_or_folder_of_the_kit():
-    """INSTRUCTOR_ONLY names what exists: a stale entry would hide that a file it meant moved."""
+    """INSTRUCTOR_ONLY and STUDENT_TESTS name what exists: a stale entry would hide that a file it meant moved."""
     names = kit_files(REPO)
-    stale = [entry for entry in INSTRUCTOR_ONLY
+    stale = [entry for entry in INSTRUCTOR_ONLY + STUDENT_TESTS
              if not any(name == entry or (entry.endswith("/") and name.startswith(entry)) for name in names)]
     assert stale == []
 

@@ -2,11 +2,11 @@
 
 * it states no answer outside a TODO block: no line of a solution block, no learning rate that
   converges, no parameter vector that balances, anywhere in the files a student gets;
-* with one natural solution per TODO (``tests/natural_solutions/``, written from the handout and the
+* with one natural solution per TODO (``tests/grader/natural_solutions/``, written from the handout and the
   docstring alone, as a student would) the student edition passes its own unit tests and hands in
   (``python -m hwtools.handin``: the visible checks pass, the report, which runs both notebooks and
   the learning-rate sweep, is printed, and the zip is one the grader's reader opens and grades in full);
-* day one, untouched (``tests/day_one.py``): Run All stops at the first cell that needs a TODO,
+* day one, untouched (``tests/instructor/day_one.py``): Run All stops at the first cell that needs a TODO,
   with two lines naming it; stepping through every cell, each one that needs a TODO names it in
   its first line (the check cells too), the others run; ``pytest`` names a TODO first in every
   failure, in a few lines each;
@@ -14,11 +14,10 @@
 
 Every command a student types runs with a Python that has the kit's packages but cannot import the
 instructor's tools (``day_one.student_python``). The reference solutions' path, editor leftovers
-included, is ``tests/test_student_path.py``.
-
-Instructor-only: this file is left out of the student edition.
+included, is ``tests/instructor/test_student_path.py``.
 """
 
+import ast
 import json
 import re
 import subprocess
@@ -29,11 +28,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import hwlib
 from hwlib.machinery.episodes import run_episodes
+from hwlib.machinery.todos import TODO_BY_ID
 from instructor.release import HOMEWORK_FOLDERS, build_student_edition, file_blocks, kit_files
 
-KIT = Path(__file__).resolve().parents[1]
-NATURAL = KIT / "tests" / "natural_solutions"
+KIT = Path(__file__).resolve().parents[2]
+NATURAL = KIT / "tests" / "grader" / "natural_solutions"
 
 pytestmark = pytest.mark.timeout(1800)  # whole runs of the edition's tests, notebooks and report
 TEXT_SUFFIXES = (".py", ".md", ".ipynb", ".toml", ".txt", ".cfg")
@@ -170,7 +171,7 @@ def natural_kit(tmp_path_factory):
 
 def test_a_student_edition_with_natural_solutions_passes_its_own_unit_tests(python, natural_kit):
     """Its notebooks, the learning-rate sweep included, run in the report of the hand-in below (and the
-    edition's whole test command, notebooks included, in tests/test_student_path.py)."""
+    edition's whole test command, notebooks included, in tests/instructor/test_student_path.py)."""
     result = run_in(python, natural_kit, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tests")
     assert result.returncode == 0, result.stdout[-4000:] + result.stderr[-2000:]
     assert re.search(r"\d+ passed", result.stdout)
@@ -302,3 +303,80 @@ def test_the_student_readme_says_what_holds_for_the_student(student_edition):
     assert "--nbval-lax" in readme and "runs the visible checks only" in readme
     assert "python -m hwtools.handin ANDREW_ID" in readme and "[andrew ID].zip" in readme
     assert "jupyter lab --notebook-dir=. notebooks/p1_cartpole_finite_difference.ipynb" in readme
+
+
+TODO_BLOCK = re.compile(r"^[ \t]*### BEGIN TODO (\d\.\d\.\d)", re.M)
+STUDENT_CALLS = """
+import json, numpy as np
+from hwlib import *
+from hwlib import TodoNotDone
+from hwlib.landscape import reward_slice
+from hwlib.training import learning_rate_sweep, run_training
+X, y = np.ones((4, 2)), np.array([0, 1, 0, 1])
+two = TwoClassLogisticRegressionClassifier(2)
+calls = {
+    "policy": lambda: CartPoleLinearPolicy([0.0] * 4)(np.zeros(4)),
+    "run_policy": lambda: run_policy(CartPoleLinearPolicy([0.0] * 4), seed=0),
+    "random policies": lambda: random_policy_rewards(10, seed=0),
+    "landscape": lambda: reward_slice(np.zeros(4), grid_size=3, num_episodes=1),
+    "finite differences": lambda: scalar_finite_diff(lambda v: 0.0, [1.0], 0.1),
+    "eval_params": lambda: eval_params([0.0] * 4, 2, seed=0),
+    "training": lambda: train_cartpole_policy(1, learning_rate=0.001),
+    "training with the settings": lambda: run_training(1),
+    "sweep": lambda: learning_rate_sweep([0.001], num_seeds=2, num_training_iterations=1),
+    "sigmoid": lambda: sigmoid(0.0),
+    "predict_prob": lambda: two.predict_prob(X),
+    "gradient step": lambda: two.gradient_ascent_step(X, y, 0.1),
+    "one-vs-rest": lambda: MultiClassLogisticRegressionClassifier(2, 2).fit(X, y, 0.1, 1),
+    "gradient": lambda: log_likelihood_gradient(np.zeros(3), X, y),
+}
+raised = {}
+for name, call in calls.items():
+    try:
+        call()
+        raised[name] = "nothing"
+    except TodoNotDone as error:
+        raised[name] = [error.todo, type(error).__name__, str(error).splitlines()[0]]
+    except Exception as error:
+        raised[name] = repr(error)
+print(json.dumps(raised))
+"""
+
+
+class TestTheStudentEditionsStubs:
+    """What the release writes in place of each solution: stubs that raise TodoNotDone, naming their TODO."""
+
+    @pytest.fixture(scope="class")
+    @classmethod
+    def student_edition(cls, tmp_path_factory):
+        out = tmp_path_factory.mktemp("student") / "kit"
+        subprocess.run([sys.executable, "-m", "instructor.release", "student", str(out), "--no-answer-key"],
+                       cwd=KIT, check=True, capture_output=True)
+        return out
+
+    def test_every_stub_in_the_student_edition_raises_todo_not_done(self, student_edition):
+        for path in (student_edition / "hwlib").rglob("*.py"):
+            text = path.read_text(encoding="utf-8")
+            for todo in TODO_BLOCK.findall(text):
+                if path.name == "settings.py":
+                    assert re.search(rf"^LEARNING_RATE = None  # TODO {todo}", text, re.M)
+                else:
+                    assert f'raise TodoNotDone("{todo}")' in text, (path.name, todo)
+            ast.parse(text)
+
+    def test_on_day_one_every_entry_point_names_the_first_todo_it_needs(self, student_edition):
+        done = subprocess.run([sys.executable, "-c", STUDENT_CALLS], cwd=student_edition, capture_output=True, text=True,
+                              env={"PYTHONPATH": str(student_edition), "MPLBACKEND": "Agg", "PATH": "/usr/bin:/bin"})
+        assert done.returncode == 0, done.stderr
+        raised = json.loads(done.stdout.strip().splitlines()[-1])
+        expected = {
+            "policy": "1.1.1", "run_policy": "1.1.1", "random policies": "1.1.1", "landscape": "1.1.1",
+            "finite differences": "1.2.1", "eval_params": "1.3.1", "training": "1.3.1",
+            "training with the settings": "1.3.3", "sweep": "1.1.1", "sigmoid": "2.2.1", "predict_prob": "2.2.2",
+            "gradient step": "2.2.3", "one-vs-rest": "2.3.1", "gradient": "2.1.1",
+        }
+        for name, todo in expected.items():
+            assert raised[name][:2] == [todo, "TodoNotDone"], (name, raised[name])
+            where, what = TODO_BY_ID[todo].where
+            assert raised[name][2].startswith(f"TODO {todo} is not done yet: {what} in {where}")
+        assert hwlib.__file__.startswith(str(KIT))  # the kit under test here is the instructor's, untouched

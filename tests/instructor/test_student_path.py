@@ -10,14 +10,12 @@ packages but not the instructor's (``instructor`` cannot be imported):
   converges, and writes a zip without the leftovers, which the instructor's grader
   (``python -m hwtools.grade ID.zip``) grades in full; with a learning rate that does not converge it
   says so and hands in all the same. (The report, which runs both notebooks again, is built in the
-  student edition's hand-in test, ``tests/test_student_edition.py``: one report per test run.)
+  student edition's hand-in test, ``tests/instructor/test_student_edition.py``: one report per test run.)
 
 And, without a sandbox or a notebook run: every reader of a kit's files leaves the leftovers out
 (``markers.is_leftover``): the grader's layout and submission readers, a class's folder, hand-in, the
 release's file list and the check of untouched TODOs; hand-in replaces a report only once the new
 one is complete.
-
-Instructor-only: the student edition leaves this file out.
 """
 
 from __future__ import annotations
@@ -39,7 +37,7 @@ from hwtools.grade import AUTO_POINTS, blocks, classroom, submissions
 from hwtools.todos import TODO_BY_ID
 from instructor.release import ReleaseError, kit_files, student_files
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 P1 = "notebooks/p1_cartpole_finite_difference.ipynb"
 LEFTOVERS = ("hwlib/.ipynb_checkpoints/cartpole-checkpoint.py", f"notebooks/.ipynb_checkpoints/{Path(P1).stem}-checkpoint.ipynb",
              "hwlib/logreg.py~", "hwlib/.finite_diff.py.swp")
@@ -162,7 +160,7 @@ def test_hand_in_says_when_training_does_not_converge_and_still_hands_in(path, t
     (".DS_Store", True), ("__MACOSX/hwlib/._cartpole.py", True), (".venv/lib/site.py", True), (".git/HEAD", True),
     ("venv/bin/python", True), (".virtual_documents/notebooks/p1.ipynb", True), ("hwlib\\.ipynb_checkpoints\\x.py", True),
     ("hwlib/cartpole.py", False), ("notebooks/p1_cartpole_finite_difference.ipynb", False), (".ci/run", False),
-    (".gitignore", False), ("tests/natural_solutions/.gitattributes", False), ("hwlib/plots/cartpole.py", False),
+    (".gitignore", False), ("tests/grader/natural_solutions/.gitattributes", False), ("hwlib/plots/cartpole.py", False),
     ("hwlib/_todo.py", False), ("README.md", False),
 ])
 def test_is_leftover(name, leftover):

@@ -5,7 +5,7 @@ import ast
 import re
 from pathlib import Path
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 HWLIB = KIT / "hwlib"
 TODO_BLOCK = re.compile(r"^[ \t]*### BEGIN (?:SOLUTION|TODO) \d\.\d\.\d", re.M)
 

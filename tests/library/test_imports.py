@@ -2,7 +2,7 @@
 stands on its own. What runs inside the grader's sandbox (``hwtools/grade/in_sandbox/``, copied
 whole into every kit) imports nothing outside its folder. Importing hwlib keeps numpy's BLAS to one
 thread unless the user set it. (That no package of the kit has an import cycle is
-tests/test_release.py::test_the_kit_has_no_import_cycles.)"""
+tests/instructor/test_release.py::test_the_kit_has_no_import_cycles.)"""
 
 import ast
 import os
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-KIT = Path(__file__).resolve().parents[1]
+KIT = Path(__file__).resolve().parents[2]
 IN_SANDBOX = KIT / "hwtools" / "grade" / "in_sandbox"
 
 

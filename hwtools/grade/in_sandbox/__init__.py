@@ -10,6 +10,6 @@ the package ``_hwgrade`` beside the kit's ``hwlib/``.
 
 Nothing here is trusted, and nothing here imports anything outside this folder (the standard
 library, numpy, and, inside functions, the kit under test and its gymnasium):
-``tests/test_imports.py`` proves it. The trusted side imports the shared pieces (the message
+``tests/library/test_imports.py`` proves it. The trusted side imports the shared pieces (the message
 format, the served table and its checks, the probes' schemas and input builders) from here.
 """
