@@ -32,7 +32,10 @@ KIT = Path(__file__).resolve().parents[2]
 CHEATS = Path(__file__).resolve().parent / "cheats"
 NATURAL = Path(__file__).resolve().parent / "natural_solutions"
 WRONG = KIT / "instructor" / "wrong_solutions"
-TIME_LIMIT = 20.0  # per TODO's run; the endless loop costs this once
+TIME_LIMIT = 20.0  # per TODO's run: room for every natural solution however slowly written
+# A cheat whose own TODO's run lasts until its limit: graded with a short one (the limit is what stops
+# it, whatever its size), so that it costs seconds, not TIME_LIMIT.
+SHORT_TIME_LIMIT, RUN_TO_THE_LIMIT = 3.0, {"endless_loop"}
 AUTO_TODOS = [todo.id for todo in TODO_BY_ID.values() if todo.auto]
 
 pytestmark = pytest.mark.timeout(900)
@@ -41,6 +44,12 @@ pytestmark = pytest.mark.timeout(900)
 @pytest.fixture(scope="module")
 def grader():
     with Grader(KIT, time_limit=TIME_LIMIT, jobs=2) as shared:
+        yield shared
+
+
+@pytest.fixture(scope="module")
+def short_grader():
+    with Grader(KIT, time_limit=SHORT_TIME_LIMIT, jobs=2) as shared:
         yield shared
 
 
@@ -411,9 +420,10 @@ def worker_processes(settle=3.0):
 
 
 @pytest.mark.parametrize("path", CHEAT_FILES, ids=lambda path: path.stem)
-def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answer_key, secrets):
+def test_cheat_earns_nothing_it_should_not(request, layout, tmp_path, path, answer_key, secrets):
     cheat = parse_cheat(path)
     build_cheat(layout, cheat, tmp_path, answer_key)
+    grader = request.getfixturevalue("short_grader" if path.stem in RUN_TO_THE_LIMIT else "grader")
     before = worker_processes(settle=0)
     result = grader.grade(tmp_path)
     grader.close()  # its reference servers live on between submissions until then
