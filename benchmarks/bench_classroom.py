@@ -29,7 +29,7 @@ import time
 import zipfile
 from pathlib import Path
 
-from hwtools.grade import AUTO_POINTS, Grader, blocks, classroom, submissions, user_sandbox
+from hwtools.grade import AUTO_POINTS, Grader, blocks, classroom, kits, submissions, user_sandbox
 
 KIT = Path(__file__).resolve().parents[1]
 
@@ -42,7 +42,7 @@ def make_class(layout, folder, count, tag):
         student = f"{tag}-{number:03d}"
         bodies = {todo: ["\n".join(body) + f"\n# {student}" for body in found] for todo, found in reference.items()}
         with tempfile.TemporaryDirectory() as scratch:
-            kit = blocks.write_submission(layout, Path(scratch) / "hw1", bodies)
+            kit = kits.write_submission(layout, Path(scratch) / "hw1", bodies)
             with zipfile.ZipFile(folder / f"{student}.zip", "w", compression=zipfile.ZIP_DEFLATED) as archive:
                 for path in sorted(kit.rglob("*.py")):
                     archive.write(path, path.relative_to(kit.parent).as_posix())

@@ -11,7 +11,7 @@
    **Run All of problem 2** the same way, with hwlib's one BLAS thread and, side by side (alternating),
    with ``OPENBLAS_NUM_THREADS`` set to the number of cores (OpenBLAS's own default), cell by cell:
    the notebooks' "about N seconds" are these cell times at a stated load.
-2. **One check per TODO** (``hwtools.check.grade_todo``, what ``check("1.2.1")`` runs): wall and
+2. **One check per TODO** (``hwtools.check_cell.grade_todo``, what ``check("1.2.1")`` runs): wall and
    CPU seconds in the instructor's edition (grading the solutions, hidden inputs included) and in
    a student edition whose TODOs hold the solutions (the answer key, visible checks only: what a
    student who is done waits for). The target is 3 s per TODO on 2 cores.
@@ -133,7 +133,7 @@ def bench_run_all_p2(rounds):
 
 
 def bench_checks(rounds):
-    from hwtools.check import grade_todo
+    from hwtools.check_cell import grade_todo
     from hwtools.grade import checks
     from instructor.release import build_student_edition
     from hwtools.todos import TODO_BY_ID

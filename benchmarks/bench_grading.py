@@ -45,14 +45,14 @@ from pathlib import Path
 
 
 
-def fresh_submissions(blocks, layout, folder, count, tag):
+def fresh_submissions(write_submission, layout, folder, count, tag):
     """``count`` kits: every block holds the reference's code plus a comment unique to the kit."""
     reference = layout.reference_bodies()
     kits = []
     for number in range(count):
         bodies = {todo: ["\n".join(body) + f"\n# submission {tag}-{number}" for body in found]
                   for todo, found in reference.items()}
-        kits.append(blocks.write_submission(layout, Path(folder) / f"{tag}-{number}", bodies))
+        kits.append(write_submission(layout, Path(folder) / f"{tag}-{number}", bodies))
     return kits
 
 
@@ -90,6 +90,10 @@ def serve(kit, isolation, jobs, python):
     A grader that has no ``isolation="user"`` (before the fallback) grades in bubblewrap."""
     from hwtools.grade import Grader, blocks  # noqa: PLC0415 - the hwtools of the kit measured (PYTHONPATH)
 
+    write_submission = getattr(blocks, "write_submission", None)  # a baseline's grader, before kits.py
+    if write_submission is None:
+        from hwtools.grade.kits import write_submission  # noqa: PLC0415
+
     reference = private_reference(kit) if isolation == "user" else kit
     try:
         grader = Grader(reference, isolation=isolation, jobs=jobs, python=python or None)
@@ -102,12 +106,12 @@ def serve(kit, isolation, jobs, python):
     with tempfile.TemporaryDirectory(prefix="bench-grading-") as folder:
         number = 0
         start = time.perf_counter()
-        result = grader.grade(fresh_submissions(blocks, layout, folder, 1, f"warm-{number}")[0])
+        result = grader.grade(fresh_submissions(write_submission, layout, folder, 1, f"warm-{number}")[0])
         assert result["total"]["auto_earned"] == 39, result["total"]
         print(json.dumps({"kind": kind, "setup": time.perf_counter() - start}), flush=True)
         for _ in sys.stdin:
             number += 1
-            kit_dir = fresh_submissions(blocks, layout, folder, 1, f"next-{number}")[0]
+            kit_dir = fresh_submissions(write_submission, layout, folder, 1, f"next-{number}")[0]
             start = time.perf_counter()
             result = grader.grade(kit_dir)
             seconds = time.perf_counter() - start
@@ -132,11 +136,14 @@ ENDLESS = """
 import json, sys, tempfile, time
 from pathlib import Path
 from hwtools.grade import Grader, blocks, checks
+write_submission = getattr(blocks, "write_submission", None)  # a baseline's grader, before kits.py
+if write_submission is None:
+    from hwtools.grade.kits import write_submission
 kit = Path(sys.argv[1])
 with tempfile.TemporaryDirectory() as folder, Grader(kit, time_limit=float(sys.argv[2]), jobs=int(sys.argv[3])) as grader:
     grader.grade(kit, todos=["2.2.1"])  # the reference's servers and answers: once per grader, not the submission's
-    loops = blocks.write_submission(blocks.load_layout(kit), Path(folder) / "loops",
-                                    {todo: "while True:\\n    pass" for todo in checks.GRADED_TODOS})
+    loops = write_submission(blocks.load_layout(kit), Path(folder) / "loops",
+                             {todo: "while True:\\n    pass" for todo in checks.GRADED_TODOS})
     started = time.monotonic()
     result = grader.grade(loops)
     print(json.dumps({"seconds": time.monotonic() - started,

@@ -6,13 +6,14 @@ A failing visible check prints one line of Python that gives you its input, for 
 
 Run it in the notebook (or any Python in the kit) and call your function on what it returns: you
 get the value the check saw. The inputs are made from the public seed of
-``hwtools/grade/checks.py``, exactly as the grader makes them; classifiers come from your own
+``hwtools/grade/checks/``, exactly as the grader makes them; classifiers come from your own
 ``hwlib/logreg.py``. Hidden inputs cannot be rebuilt here (they are not in the kit).
 """
 
 from __future__ import annotations
 
-from hwtools.grade import checks, probes
+from hwtools.grade import checks
+from hwtools.grade.in_sandbox import probes
 
 def _case(case_id):
     todo, _, number = str(case_id).partition("/")

@@ -4,11 +4,11 @@
 
 It checks first and writes nothing until then:
 
-1. the zip is built in memory and opened with the grader's own reader (``hwtools.grade.classroom
+1. the zip is built in memory and opened with the grader's own reader (``hwtools.grade.submissions
    .open_submission``, the one that reads a class's zips), which must find the code of every TODO;
    otherwise it stops, naming the TODO and the file, and writes nothing;
 2. the visible checks run, each as the notebook's ``check("1.2.1")`` cell runs it
-   (``hwtools.check``), and it says which fail and whether training converges (TODO 1.3.3). A
+   (``hwtools.check_cell``), and it says which fail and whether training converges (TODO 1.3.3). A
    failing check does not stop the hand-in: it is yours to decide.
 
 Then it writes into ``handin/`` (next to the kit's ``hwlib/`` unless ``--out`` says otherwise):
@@ -40,7 +40,8 @@ import zipfile
 from pathlib import Path
 
 from hwtools import markers
-from hwtools.check import KIT_ROOT, CheckError, check_lines, grade_todo
+from hwtools.check_cell import CheckError, check_lines, grade_todo
+from hwtools.not_done import KIT_ROOT
 
 ZIP_DATE = (1980, 1, 1, 0, 0, 0)  # the earliest date a zip can hold: no time stamps
 ANDREW_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}")
@@ -86,7 +87,7 @@ def read_back(zip_path, kit):
 
     Returns ({TODO id: why its code cannot be read}, the files the reader took); raises HandinError
     when the reader refuses the zip."""
-    from hwtools.grade import blocks, classroom  # noqa: PLC0415 - the grader's own reader
+    from hwtools.grade import blocks, submissions  # noqa: PLC0415 - the grader's own reader
 
     try:
         layout = blocks.load_layout(kit)
@@ -94,10 +95,10 @@ def read_back(zip_path, kit):
         raise HandinError(f"the TODO markers in your files do not pair up: {error} (each TODO's code sits between "
                           "its ### BEGIN TODO and ### END TODO lines, as the kit gave them)") from None
     try:
-        with classroom.open_submission(zip_path, classroom.kit_file_names(layout)) as opened:
+        with submissions.open_submission(zip_path, submissions.kit_file_names(layout)) as opened:
             taken = sorted(path.relative_to(opened.kit).as_posix() for path in opened.kit.rglob("*") if path.is_file())
             read = blocks.read_submission(opened.kit, layout)
-    except classroom.Unusable as error:
+    except submissions.Unusable as error:
         raise HandinError(f"the grader's reader refuses the zip: {error.text}") from None
     return dict(read.problems), taken
 

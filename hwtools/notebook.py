@@ -1,6 +1,6 @@
 """What the notebooks import from the kit's tools: ``check`` and day-one messages.
 
-``check("1.2.1")`` prints the grader's verdict on each visible check of one TODO (``hwtools.check``
+``check("1.2.1")`` prints the grader's verdict on each visible check of one TODO (``hwtools.check_cell``
 runs it in a subprocess, on the files as saved).
 
 Importing this module in a notebook also makes a cell that needs a value of an earlier cell say
@@ -19,7 +19,8 @@ import os
 import re
 import sys
 
-from hwtools.check import KIT_ROOT, check_lines, grade_todo, not_done_todo
+from hwtools.check_cell import check_lines, grade_todo
+from hwtools.not_done import KIT_ROOT, not_done_todo
 from hwtools.todos import TODO_BY_ID
 
 _loaded = {}  # hwlib module file -> its modification time when this kernel had it loaded

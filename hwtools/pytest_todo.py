@@ -25,7 +25,7 @@ import re
 
 import pytest
 
-from hwtools.check import _where, not_done_todo, untouched_todos
+from hwtools.not_done import not_done_todo, untouched_todos, where
 from hwtools.todos import TODO_BY_ID
 
 _NOT_DONE_TEXT = re.compile(r"\bTODO (\d+\.\d+\.\d+) is not done yet")
@@ -89,7 +89,7 @@ class TodoFirst:
 
 
 def _not_done_lines(todo):
-    return (f"TODO {todo} is not done yet: {_where(todo)}\n"
+    return (f"TODO {todo} is not done yet: {where(todo)}\n"
             f"  Write it between ### BEGIN TODO {todo} and ### END TODO {todo}, save, and run the tests again.")
 
 
@@ -139,7 +139,7 @@ def pytest_runtest_setup(item):
     needed = _marked_todos(item) or list(TODO_BY_ID)
     missing = [todo for todo in needed if todo in _untouched_in(item.config)]
     if missing:
-        pytest.skip(f"TODO {missing[0]} is not done yet ({_where(missing[0])}): this browser test runs the notebooks, "
+        pytest.skip(f"TODO {missing[0]} is not done yet ({where(missing[0])}): this browser test runs the notebooks, "
                     f"which need {'it' if len(missing) == 1 else 'it and ' + ', '.join(missing[1:])}")
 
 

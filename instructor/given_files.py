@@ -16,7 +16,7 @@ HIDDEN_MARK = re.compile(r"(?:pytest\.)?mark\.hidden\b(?:\(\))?")
 def drop_hidden_tests(text, path):
     """``text`` of a test file without its top-level tests (functions or classes) decorated
     ``@pytest.mark.hidden``. A hidden mark anywhere else (``pytestmark``, a method) is an error:
-    whole hidden files belong in tests/hidden/, which the student edition leaves out."""
+    a whole test file that stays with the instructor is listed in ``INSTRUCTOR_ONLY`` (``instructor/kit.py``)."""
     if not HIDDEN_MARK.search(text):
         return text
     tree = ast.parse(text)
@@ -33,7 +33,7 @@ def drop_hidden_tests(text, path):
     leftover = [index + 1 for index, line in enumerate(lines) if index not in drop and HIDDEN_MARK.search(line)]
     if leftover:
         raise ReleaseError(f"{path}:{leftover[0]}: only top-level tests can be marked hidden here; "
-                           "put hidden test files in tests/hidden/, which the student edition leaves out")
+                           "list a whole instructor-only test file in INSTRUCTOR_ONLY (instructor/kit.py)")
     kept = [line for index, line in enumerate(lines) if index not in drop]
     while len(kept) > 1 and not kept[-1].strip() and not kept[-2].strip():
         kept.pop()  # a file that ended with a dropped test ends with one newline, as before

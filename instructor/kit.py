@@ -2,7 +2,7 @@
 instructor, and the solution blocks in them (read by ``hwtools.markers`` with the instructor's rules).
 
 Both editions start here: the student edition (``instructor/release.py``) and the Gradescope
-bundle (``instructor/gradescope.py``).
+bundle (``instructor/gradescope_bundle.py``).
 """
 
 from __future__ import annotations
@@ -61,9 +61,7 @@ INSTRUCTOR_ONLY = (
     "tests/test_quick_start.py",
     "tests/test_clone_location.py",  # copies of this kit run the user fallback's and Gradescope's cases
     "tests/test_report.py",
-    # Fixtures of the grader's proof.
-    "tests/hidden/",
-    "tests/wrong_solutions/",
+    # Fixtures of the grader's proof (its wrong solutions and hidden checks are in instructor/).
     "tests/natural_solutions/",  # working solutions of every TODO
     "tests/cheats/",
     # Its per-sample reference loop spells out the gradient of 2.1.1 and the labels of 2.3.1.

@@ -1,7 +1,7 @@
 """Build the student edition of the kit from the instructor's kit (the one source of truth).
 
     python -m instructor.release student OUT_DIR [--source KIT_DIR] [--force] [--keep TODO ...]
-    python -m instructor.release gradescope OUT.zip [--source KIT_DIR] [--force]   (see instructor/gradescope.py)
+    python -m instructor.release gradescope OUT.zip [--source KIT_DIR] [--force]   (see instructor/gradescope_bundle.py)
 
 Solution code is fenced, in ``hwlib`` and in the notebooks' code cells, by comment lines
 
@@ -24,9 +24,9 @@ edition
   ``raise NotImplementedError()`` (or its STUB lines) between the same kept markers; in a
   Markdown cell it becomes ``YOUR ANSWER HERE``; every notebook's outputs, execution counts,
   execution timings and stored widget state are cleared (``instructor/notebooks.py``);
-* instructor-only files (``INSTRUCTOR_ONLY`` in ``instructor/kit.py``: this tool, tests/hidden/,
-  the tests of this tool and of the grader's proof, the wrong-solution fixtures, the
-  logistic-regression benchmark whose reference loop spells out answers) are left out, and so are
+* instructor-only files (``INSTRUCTOR_ONLY`` in ``instructor/kit.py``: ``instructor/`` with this
+  tool, the hidden checks and the wrong solutions; the tests of this tool and of the grader's
+  proof and their fixtures; the benchmarks whose reference loops spell out answers) are left out, and so are
   the top-level tests marked ``@pytest.mark.hidden`` in the other test files;
 * ``pyproject.toml`` runs the notebooks with ``--nbval-lax`` (stored notebooks have no outputs
   to compare, so cells must only run without error; ``instructor/given_files.py``);
@@ -53,7 +53,7 @@ import sys
 from pathlib import Path
 
 from hwtools.todos import TODO_BY_ID
-from instructor import gradescope
+from instructor import gradescope_bundle
 from instructor.given_files import drop_hidden_tests, transform_pyproject
 from instructor.kit import (HOMEWORK_FOLDERS, INSTRUCTOR_ONLY, ReleaseError, file_blocks, find_blocks, is_instructor_only,
                             kit_files, read_text)
@@ -182,7 +182,7 @@ def main(argv=None):
     student.add_argument("--keep", action="append", default=[], metavar="TODO", help="keep this TODO's solution (for checking the tests)")
     student.add_argument("--no-answer-key", action="store_true",
                          help="skip the grader's answer key (then the student edition's grader has nothing to compare with)")
-    gradescope.add_parser(commands, Path(__file__).resolve().parents[1])
+    gradescope_bundle.add_parser(commands, Path(__file__).resolve().parents[1])
     args = parser.parse_args(argv)
     if args.edition == "gradescope":
         return args.run(args)

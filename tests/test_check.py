@@ -1,4 +1,4 @@
-"""The notebooks' check cells and day-one messages (hwtools/check.py, hwtools/notebook.py, hwtools/pytest_todo.py).
+"""The notebooks' check cells and day-one messages (hwtools/check_cell.py, hwtools/not_done.py, hwtools/notebook.py, hwtools/pytest_todo.py).
 
 * ``check("1.2.1")`` prints the grader's verdict on each visible check: pass, or FAIL with the
   visible input, the expected value and the actual one; "not done yet" for an untouched TODO;
@@ -24,8 +24,9 @@ from pathlib import Path
 
 import pytest
 
-from hwtools import check as check_module
-from hwtools.check import CheckError, check_lines, grade_todo, not_done_in_text, not_done_todo, untouched_todos
+from hwtools import check_cell
+from hwtools.check_cell import CheckError, check_lines, grade_todo
+from hwtools.not_done import not_done_in_text, not_done_todo, untouched_todos
 from hwtools.notebook import assigned_names
 
 KIT = Path(__file__).resolve().parents[1]
@@ -257,7 +258,7 @@ def test_an_interrupt_ends_the_graders_subprocess(monkeypatch):
         def communicate(self, *args, **kwargs):
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(check_module.subprocess, "Popen", Interrupted)
+    monkeypatch.setattr(check_cell.subprocess, "Popen", Interrupted)
     with pytest.raises(KeyboardInterrupt):
         grade_todo("2.2.1")
     assert len(started) == 1 and started[0].poll() is not None  # ended, not left running

@@ -25,10 +25,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging
+from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging, kits
+from hwtools.grade.checks import p1_cartpole, p2_logreg
+from hwtools.grade.checks.verdicts import show, tell_apart
 from hwtools.grade.episodes import Environments, Records
 from hwtools.grade.class_feedback import todo_markdown
-from hwtools.check import check_lines
+from hwtools.check_cell import check_lines
 from hwtools.grade.feedback import failure_words, render
 from test_grading import full_points, parse_wrong_solution, points
 
@@ -74,13 +76,13 @@ def test_a_tiny_value_is_shown_as_itself_and_its_difference_relative():
     actual[5] = 0.0  # sigma(-24.4) = 2.5e-11, "rounded" to 0
     verdict = judged("2.2.1/precision", {"z": z}, actual, expected)
     assert not verdict.passed
-    assert "2.53055e-11" in verdict.expected and "2.53055e-11" in checks.show(expected[5])
+    assert "2.53055e-11" in verdict.expected and "2.53055e-11" in show(expected[5])
     assert verdict.difference.startswith("first difference at index [5] (z[5] = -24.4): expected 2.53055e-11, actual 0")
     assert "relative difference 1;" in verdict.difference and "1 of 6 entries differ" in verdict.difference
     assert verdict.tolerance.startswith("|actual - expected| <= 1e-12 * |expected| + 1e-15;")
     # the values check lets |z| > 20 be 1e-8 off (a sigmoid clipped at +-20 is a shortcut), and says so
     assert judged("2.2.1/values", {"z": z}, actual, expected).passed
-    assert "+ 1e-08 in place of + 1e-15 where |z| > 20" in checks.SIGMOID_TOLERANCE.words()
+    assert "+ 1e-08 in place of + 1e-15 where |z| > 20" in p2_logreg.SIGMOID_TOLERANCE.words()
 
 
 def test_values_off_by_2e_9_are_told_apart_with_enough_digits():
@@ -89,12 +91,12 @@ def test_values_off_by_2e_9_are_told_apart_with_enough_digits():
     actual = expected + np.array([0.0, 2e-9, 0.0])
     verdict = judged("2.2.1/precision", {"z": z}, actual, expected)
     assert not verdict.passed
-    want, got = checks.tell_apart(expected[1], actual[1])
+    want, got = tell_apart(expected[1], actual[1])
     assert want != got and len(want) > 8, (want, got)  # six digits would print the two alike
     assert f"expected {want}, actual {got}" in verdict.difference
     assert "index [1]" in verdict.difference and "relative difference 3.34e-09" in verdict.difference
-    assert checks.tell_apart(0.123456789, 0.123456791) == ("0.123456789", "0.123456791")
-    assert checks.tell_apart(1.0, 1.0 + 2.0**-52) == ("1", "1.0000000000000002")
+    assert tell_apart(0.123456789, 0.123456791) == ("0.123456789", "0.123456791")
+    assert tell_apart(1.0, 1.0 + 2.0**-52) == ("1", "1.0000000000000002")
 
 
 def test_the_difference_names_the_entry_and_its_input():
@@ -229,8 +231,8 @@ def test_a_sigmoid_in_float32_earns_the_formula_but_not_the_precision_point():
 
 def test_finite_difference_tolerance_takes_another_order_and_float32_but_no_other_formula():
     rng = np.random.default_rng(1)
-    spec = checks._coupled(rng, 5)
-    from hwtools.grade.probes import known_function
+    spec = p1_cartpole._coupled(rng, 5)
+    from hwtools.grade.in_sandbox.probes import known_function
 
     f, x, h = known_function(spec), rng.uniform(-1.5, 1.5, 5), np.array([0.01, 0.05, 0.3, 0.8, 0.2])
     eye = np.eye(5)
@@ -254,17 +256,17 @@ def test_finite_difference_tolerance_takes_another_order_and_float32_but_no_othe
 def test_no_hidden_input_repeats_a_visible_one():
     """A hidden input equal to a visible one would be shown in feedback, and answered by the key."""
     from hwtools.grade.grader import load_hidden_checks
-    from hwtools.grade.worker import fingerprint
+    from hwtools.grade.in_sandbox.channel import fingerprint
 
     hidden = load_hidden_checks(KIT)
-    shown = {checks.show(value) for b in checks.BEHAVIOURS for args in b.visible_cases() for value in args.values()}
+    shown = {show(value) for b in checks.BEHAVIOURS for args in b.visible_cases() for value in args.values()}
     for b in checks.BEHAVIOURS:
         visible = {fingerprint({"args": args}) for args in b.visible_cases()}
         for args in hidden.hidden_cases(b):
             assert fingerprint({"args": args}) not in visible, (b.id, args)
             for name, value in args.items():  # nor does it read as one where feedback shows a visible input
                 if isinstance(value, np.ndarray) and np.unique(value).size >= 3:
-                    assert checks.show(value) not in shown, (b.id, name, checks.show(value))
+                    assert show(value) not in shown, (b.id, name, show(value))
 
 
 # --------------------------------------------------------------------------------------------
@@ -362,7 +364,7 @@ def is_crlf(path):
 def write_kit(layout, folder, bodies, crlf=False):
     """A student's kit with ``bodies`` ({todo: code}) in their blocks and the reference elsewhere;
     with ``crlf`` every file saved with Windows line endings, as Git for Windows checks it out."""
-    blocks.write_submission(layout, folder, bodies, others="reference")
+    kits.write_submission(layout, folder, bodies, others="reference")
     if crlf:
         for path in Path(folder).rglob("*.py"):
             path.write_bytes(path.read_bytes().replace(b"\r\n", b"\n").replace(b"\n", b"\r\n"))
@@ -492,7 +494,8 @@ def test_the_line_a_failing_check_prints_rebuilds_its_input_in_the_student_editi
     """Each visible case's line of Python, run in the student edition (its own hwtools and hwlib),
     gives the input the check gave the student's function."""
     from hwtools.cases import visible_case
-    from hwtools.grade.probes import known_function, rebuild_line
+    from hwtools.grade.checks import rebuild_line
+    from hwtools.grade.in_sandbox.probes import known_function
 
     edition, env = student_edition
     lines = {case_id: rebuild_line(case_id, b.probe) for todo in checks.GRADED_TODOS

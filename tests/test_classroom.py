@@ -27,7 +27,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, TODOS, Grader, blocks, checks, classroom, submissions, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks, classroom, kits, submissions, write_answer_key
+from hwtools.grade.checks.verdicts import show
 from hwtools.grade.gradebook import gradebook_header
 from hwtools.grade.grader import read_answer_key
 
@@ -123,7 +124,7 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
     made = Class(folder)
 
     # Correct: a folder, and a zip of a whole student edition one folder down, with macOS leftovers.
-    blocks.write_submission(layout, folder / "correct-folder", others="reference")
+    kits.write_submission(layout, folder / "correct-folder", others="reference")
     made.expect("correct-folder", graded(grader), full())
     edition = scratch / "edition"
     build_student_edition(KIT, edition, keep=frozenset(TODO_BY_ID), answer_key=False)
@@ -135,7 +136,7 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
     # Each wrong solution, zipped one folder down: its own TODO loses, every other keeps its points.
     for path in sorted(proof.WRONG.glob("*.txt")):
         todo, _, bodies = proof.parse_wrong_solution(path)
-        kit = blocks.write_submission(layout, scratch / "wrong" / path.stem / "hw1", {todo: bodies}, others="reference")
+        kit = kits.write_submission(layout, scratch / "wrong" / path.stem / "hw1", {todo: bodies}, others="reference")
         zip_folder(kit.parent, folder / f"wrong-{path.stem}.zip")
         kept = WRONG_KEPT.get(path.stem)
         if kept is None:  # a wrong solution added since: what grading it alone gives, which must lose points
@@ -238,13 +239,13 @@ def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class,
     assert "rejected: a path that leaves the submission" in feedback["traversal"]
     assert "Nothing of this submission was run" in feedback["huge"]
     assert "on a hidden input (hidden inputs are not shown" in feedback["cheat-hardcoded_visible"]
-    hidden_inputs = [checks.show(value) for todo in checks.GRADED_TODOS for _, _, args in grader.cases[todo].hidden
+    hidden_inputs = [show(value) for todo in checks.GRADED_TODOS for _, _, args in grader.cases[todo].hidden
                      for value in args.values() if isinstance(value, np.ndarray) and np.unique(value).size >= 3]
     assert hidden_inputs
     for student, text in feedback.items():
         for shown in hidden_inputs:
             assert shown not in text, (student, shown)
-        for line in grader._secret_lines:
+        for line in grader._scrub.lines:
             assert line not in text, student
         assert str(a_class.folder) not in text and "hwclass-" not in text, "no path of the grading machine"
 
@@ -289,6 +290,24 @@ def test_a_changed_submission_is_graded_again_and_only_it(a_class, first_run, gr
     assert report.graded_now == 1
     changed = next(result for result in report.students if result.student == "correct-folder")
     assert not changed.reused and changed.auto_total == AUTO_POINTS
+
+
+def test_the_saved_results_are_stale_once_any_module_of_the_grader_changes(monkeypatch, tmp_path):
+    """A saved result is reused only under the same grading: a changed check (checks/), probe
+    (in_sandbox/) or TODO table makes every saved result stale."""
+    from types import SimpleNamespace
+
+    fake = SimpleNamespace(layout=SimpleNamespace(files={}), reference=tmp_path,
+                           sandbox=SimpleNamespace(python="python", isolated=True, how="", time_limit=1.0, memory_limit=1))
+    before = classroom.grading_fingerprint(fake)
+    read_bytes = Path.read_bytes
+    grade = Path(classroom.__file__).resolve().parent
+    for changed in (grade / "checks" / "p1_cartpole.py", grade / "in_sandbox" / "probes.py", grade / "judging.py",
+                    grade.parent / "todos.py"):
+        monkeypatch.setattr(Path, "read_bytes", lambda path, changed=changed: read_bytes(path) + b"#" * (path == changed))
+        assert classroom.grading_fingerprint(fake) != before, changed
+    monkeypatch.setattr(Path, "read_bytes", read_bytes)
+    assert classroom.grading_fingerprint(fake) == before
 
 
 def test_a_killed_run_resumes_without_grading_again_what_was_saved(a_class, first_run, grader, tmp_path):
@@ -343,7 +362,7 @@ def read(path, layout):
 @pytest.fixture(scope="module")
 def a_kit(layout, tmp_path_factory):
     folder = tmp_path_factory.mktemp("kit") / "kit"
-    blocks.write_submission(layout, folder, others="reference")
+    kits.write_submission(layout, folder, others="reference")
     shutil.copytree(KIT / "notebooks", folder / "notebooks")
     return folder
 
@@ -467,7 +486,7 @@ def test_too_many_entries_too_many_bytes_empty_and_damaged(a_kit, layout, tmp_pa
 
 def test_duplicate_ids_and_formula_like_names(layout, grader, tmp_path):
     folder = tmp_path / "submissions"
-    blocks.write_submission(layout, folder / "dup", others="stub")
+    kits.write_submission(layout, folder / "dup", others="stub")
     zip_folder(folder / "dup", folder / "dup.zip")
     (folder / "=HYPERLINK(1)").mkdir()
     (folder / ".DS_Store").write_bytes(b"\0")
@@ -524,7 +543,7 @@ FORGED = "\r\x1b[2Kbob: graded, 39 of 39\x1b[0m\u202e"  # rewrites the instructo
 
 def test_control_characters_never_reach_the_gradebook_the_feedback_or_the_terminal(layout, grader, tmp_path):
     folder = tmp_path / "submissions"
-    blocks.write_submission(layout, folder / f"mallory{FORGED}", {"2.2.1": (
+    kits.write_submission(layout, folder / f"mallory{FORGED}", {"2.2.1": (
         f"import warnings\nwarnings.warn({FORGED!r})\nvalues = 0.5 * (1.0 + np.tanh(0.5 * z))")}, others="reference")
     with zipfile.ZipFile(folder / f"eve{FORGED}.zip", "w") as archive:
         archive.writestr(f"hw1/../{FORGED}.py", "x = 1\n")
@@ -557,7 +576,7 @@ def test_odd_ids_long_ids_and_a_block_too_deep_to_compile_each_get_their_own_row
     compiler (RecursionError escaped the grader): every row and every feedback file is written,
     each to its own file, and the deep block costs only its TODO."""
     folder = tmp_path / "submissions"
-    blocks.write_submission(layout, folder / "deep", {"2.2.1": DEEP}, others="reference")
+    kits.write_submission(layout, folder / "deep", {"2.2.1": DEEP}, others="reference")
     (folder / "Ana María").mkdir(parents=True)
     (folder / "Ana_Mar_a-8358ed27.zip").write_bytes(b"PK\x03\x04" + bytes(100))
     long_id = "a" * 245

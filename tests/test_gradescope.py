@@ -27,9 +27,9 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, TODOS, blocks, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, blocks, kits, write_answer_key
 from hwtools.grade.grader import read_answer_key
-from hwtools.grade.gradescope import BUNDLE_MARKER
+from hwtools.grade.gradescope_autograder import BUNDLE_MARKER
 
 KIT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(KIT / "tests"))
@@ -203,7 +203,7 @@ def test_the_bundle_holds_what_gradescope_runs_and_nothing_a_grader_does_not_nee
         setup = archive.read("setup.sh").decode()
     names = set(infos)
     assert {"setup.sh", "run_autograder", "requirements.txt", BUNDLE_MARKER, "instructor/hidden_checks/__init__.py",
-            "hwlib/finite_diff.py", "hwtools/grade/gradescope.py"} <= names
+            "hwlib/finite_diff.py", "hwtools/grade/gradescope_autograder.py"} <= names
     for name in ("setup.sh", "run_autograder"):
         assert (infos[name].external_attr >> 16) & 0o111, f"{name} is not executable"
     assert not [name for name in names if name.startswith(("notebooks/", "tests/", "benchmarks/", "data/"))
@@ -229,7 +229,7 @@ def test_the_bundled_requirements_cover_what_the_graded_code_imports():
     distributions = importlib.metadata.packages_distributions()
     used = {dist for name in modules if name.split(".")[0] not in sys.stdlib_module_names
             for dist in distributions.get(name.split(".")[0], []) if name.split(".")[0] != "hwlib"}
-    from instructor.gradescope import GRADING_REQUIREMENTS
+    from instructor.gradescope_bundle import GRADING_REQUIREMENTS
 
     allowed, pending = set(), list(GRADING_REQUIREMENTS)
     while pending:
@@ -245,7 +245,7 @@ def test_the_bundled_requirements_cover_what_the_graded_code_imports():
 
 
 def test_a_correct_submission_earns_every_point(bundle, layout, tmp_path, container):
-    data, stdout = autograde(bundle, tmp_path, lambda folder: blocks.write_submission(layout, folder, others="reference"),
+    data, stdout = autograde(bundle, tmp_path, lambda folder: kits.write_submission(layout, folder, others="reference"),
                              container)
     assert data["score"] == AUTO_POINTS == 39
     assert all(test["status"] == "passed" for test in data["tests"])
@@ -327,7 +327,7 @@ def test_a_wrong_solution_loses_its_own_todo_and_is_told_what_to_fix(bundle, lay
     todo, _, bodies = proof.parse_wrong_solution(proof.WRONG / "forward_difference.txt")
 
     def bare_files(folder):  # Gradescope's upload of single files: the library's files without hwlib/
-        blocks.write_submission(layout, folder / "kit", {todo: bodies}, others="reference")
+        kits.write_submission(layout, folder / "kit", {todo: bodies}, others="reference")
         for path in (folder / "kit" / "hwlib").glob("*.py"):
             shutil.move(path, folder / path.name)
         shutil.rmtree(folder / "kit")
@@ -377,7 +377,7 @@ def test_an_unreadable_submission_gets_zero_and_the_reason_at_once(bundle, tmp_p
 
 
 def test_students_read_their_status_without_the_sandbox_s_state():
-    from hwtools.grade.gradescope import results_json
+    from hwtools.grade.gradescope_autograder import results_json
 
     result = {"notes": [], "total": {"auto_earned": 0.0}, "isolated": False, "isolation": "bwrap is missing",
               "todos": []}

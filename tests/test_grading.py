@@ -21,7 +21,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, mistakes, served, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, kits, mistakes, write_answer_key
+from hwtools.grade.checks.verdicts import show
+from hwtools.grade.in_sandbox import served
 from hwtools.grade.feedback import render
 from cheats import leak_search
 from process_watch import live_processes
@@ -82,7 +84,7 @@ def test_instructor_kit_earns_every_point(grader):
 
 
 def test_untouched_student_edition_earns_nothing(grader, layout, tmp_path):
-    blocks.write_submission(layout, tmp_path, others="stub")
+    kits.write_submission(layout, tmp_path, others="stub")
     result = grader.grade(tmp_path)
     assert result["total"]["auto_earned"] == 0
     for entry in result["todos"]:
@@ -119,7 +121,7 @@ def parse_wrong_solution(path):
 @pytest.mark.parametrize("path", sorted(WRONG.glob("*.txt")), ids=lambda path: path.stem)
 def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, path):
     todo, mistake, bodies = parse_wrong_solution(path)
-    blocks.write_submission(layout, tmp_path, {todo: bodies}, others="reference")
+    kits.write_submission(layout, tmp_path, {todo: bodies}, others="reference")
     result = grader.grade(tmp_path)
     earned = points(result)
     assert earned[todo] < TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) kept every point of {todo}"
@@ -176,7 +178,7 @@ MISTAKES = {
 @pytest.mark.parametrize("mistake", list(MISTAKES))
 def test_a_mistake_keeps_the_points_of_what_is_right_and_costs_nothing_elsewhere(grader, layout, tmp_path, mistake):
     todo, body, kept = MISTAKES[mistake]
-    blocks.write_submission(layout, tmp_path, {todo: body}, others="reference")
+    kits.write_submission(layout, tmp_path, {todo: body}, others="reference")
     result = grader.grade(tmp_path)
     assert points(result) == full_points() | {todo: kept}, render(result)
 
@@ -188,7 +190,7 @@ def test_the_class_sees_its_mistakes_beside_the_gradebook(grader, layout, tmp_pa
 
     forward = mistakes.read_wrong_solution(WRONG / "forward_difference.txt")
     for student, bodies in (("ada", {}), ("bob", {"1.2.1": list(forward.bodies)}), ("cy", {"1.2.1": list(forward.bodies)})):
-        blocks.write_submission(layout, tmp_path / "class" / student, bodies, others="reference")
+        kits.write_submission(layout, tmp_path / "class" / student, bodies, others="reference")
     report = classroom.grade_class(tmp_path / "class", tmp_path / "out" / "grades.csv", tmp_path / "out" / "feedback",
                                    grader=grader, jobs=2)
     assert len(report.students) == 3
@@ -222,7 +224,7 @@ def natural_solutions():
 @pytest.mark.parametrize("path", natural_solutions(), ids=lambda path: path.stem)
 def test_natural_solution_earns_every_point(grader, layout, tmp_path, path):
     todo = path.name.split("_")[0]
-    blocks.write_submission(layout, tmp_path, {todo: path.read_text(encoding="utf-8")}, others="reference")
+    kits.write_submission(layout, tmp_path, {todo: path.read_text(encoding="utf-8")}, others="reference")
     result = grader.grade(tmp_path)
     assert points(result) == full_points(), render(result)
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
@@ -269,7 +271,7 @@ CALLS_ANOTHER_TODO = {
 
 @pytest.mark.parametrize("todo, other", list(CALLS_ANOTHER_TODO), ids=lambda value: str(value))
 def test_a_correct_solution_that_calls_another_todos_function_earns_every_point(grader, layout, tmp_path, todo, other):
-    blocks.write_submission(layout, tmp_path, {todo: CALLS_ANOTHER_TODO[todo, other]}, others="reference")
+    kits.write_submission(layout, tmp_path, {todo: CALLS_ANOTHER_TODO[todo, other]}, others="reference")
     result = grader.grade(tmp_path)
     assert points(result) == full_points(), render(result)
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
@@ -362,7 +364,7 @@ def build_cheat(layout, cheat, folder, answer_key):
     bodies = dict(cheat["bodies"])
     for todo in cheat["hardcode"]:
         bodies[todo] = hardcoded_body(todo, answer_key)
-    blocks.write_submission(layout, folder, bodies, others=cheat["others"])
+    kits.write_submission(layout, folder, bodies, others=cheat["others"])
     for relative, content in cheat["prepend"].items():
         target = folder / relative
         target.write_text(content + target.read_text(encoding="utf-8"), encoding="utf-8")
@@ -398,28 +400,28 @@ def descendants(roots):
     return found
 
 
-def worker_processes(grader, settle=3.0):
-    """The processes of this test run running the grader's worker that are still alive (zombies
-    excluded), after giving killed ones up to ``settle`` seconds to go. Only this process's own
-    tree counts (other test runs and graders may share the machine; in bubblewrap a process that
-    leaves its session stays in the sandbox's tree), and not the grader's reference servers,
-    which live on between submissions."""
-    alive = live_processes(lambda cmdline: b"worker.py" in cmdline and (b"/grader/" in cmdline or b"hwgrade-kit" in cmdline),
+def worker_processes(settle=3.0):
+    """The processes of this test run running the grader's worker (a student's run or a reference
+    server) that are still alive (zombies excluded), after giving killed ones up to ``settle``
+    seconds to go. Only this process's own tree counts (other test runs and graders may share the
+    machine; in bubblewrap a process that leaves its session stays in the sandbox's tree)."""
+    alive = live_processes(lambda cmdline: b"worker.py" in cmdline and (b"/grader/" in cmdline or b"hwgrade-" in cmdline),
                            settle)
-    return (alive & descendants({os.getpid()})) - descendants(grader.pool.process_ids())
+    return alive & descendants({os.getpid()})
 
 
 @pytest.mark.parametrize("path", CHEAT_FILES, ids=lambda path: path.stem)
 def test_cheat_earns_nothing_it_should_not(grader, layout, tmp_path, path, answer_key, secrets):
     cheat = parse_cheat(path)
     build_cheat(layout, cheat, tmp_path, answer_key)
-    before = worker_processes(grader, settle=0)
+    before = worker_processes(settle=0)
     result = grader.grade(tmp_path)
+    grader.close()  # its reference servers live on between submissions until then
     assert result["total"]["auto_earned"] == cheat["points"], render(result)
     report = text_of(result)
     for expected in cheat["expect"]:
         assert expected in report, f"the report does not say {expected!r}:\n{render(result)}"
-    assert worker_processes(grader) <= before, "a process of the run outlived it"
+    assert worker_processes() <= before, "a process of the run (or a reference server) outlived it"
     if cheat["others"] == "reference":  # the cheat may cost only its own TODO
         lost = [todo for todo, value in points(result).items() if value < TODO_BY_ID[todo].auto]
         assert lost == cheat["loses"], render(result)
@@ -479,15 +481,15 @@ def test_the_leak_search_finds_what_it_looks_for(grader, secrets):
 def test_feedback_shows_visible_failures_and_never_a_hidden_input(grader, layout, tmp_path):
     forward = "for i in range(len(x)):\n    step = np.zeros_like(x)\n    step[i] = h[i]\n" \
               "    gradient[i] = (f(x + step) - f(x)) / h[i]"
-    blocks.write_submission(layout, tmp_path, {"1.2.1": forward}, others="reference")
+    kits.write_submission(layout, tmp_path, {"1.2.1": forward}, others="reference")
     result = grader.grade(tmp_path)
     entry = next(entry for entry in result["todos"] if entry["id"] == "1.2.1")
     assert entry["auto_earned"] == 0
     assert entry["first_failure"]["hidden"] is False and "x=" in entry["first_failure"]["input"]
     report = render(result)
     for case_id, _, args in grader.cases["1.2.1"].hidden:
-        assert checks.show(args["x"]) not in report, case_id
-    for line in grader._secret_lines:
+        assert show(args["x"]) not in report, case_id
+    for line in grader._scrub.lines:
         assert line not in report
 
 
@@ -496,7 +498,7 @@ def test_no_kit_a_student_run_gets_holds_reference_code_and_the_server_kit_holds
     solution_lines = {todo: {line.strip() for body in bodies for line in body
                              if len(line.strip()) > 12 and not line.strip().startswith("#")}
                       for todo, bodies in reference.items()}
-    blocks.write_submission(layout, tmp_path, others="stub")
+    kits.write_submission(layout, tmp_path, others="stub")
     read = blocks.read_submission(tmp_path, layout)
     for todo in checks.GRADED_TODOS:
         files = grader._composite(todo, read, layout)  # what the grader writes for the student's run of todo
@@ -531,7 +533,7 @@ def test_each_check_is_served_the_functions_it_calls_and_none_that_compute_its_o
 
 def test_report_names_an_unisolated_run_on_its_first_line(tmp_path, layout):
     unisolated = Grader(KIT, isolation="none", time_limit=TIME_LIMIT)
-    blocks.write_submission(layout, tmp_path, others="reference")
+    kits.write_submission(layout, tmp_path, others="reference")
     result = unisolated.grade(tmp_path, todos=["2.2.1"])
     assert render(result).startswith("NOT ISOLATED: ")
     assert points(result) == {"2.2.1": 2}
@@ -539,7 +541,7 @@ def test_report_names_an_unisolated_run_on_its_first_line(tmp_path, layout):
 
 def test_a_block_that_does_not_parse_costs_only_its_todo(grader, layout, tmp_path):
     swallow = 'values = 1 / (1 + np.exp(-z))\n"""'  # an open string would swallow the kit's code after the block
-    blocks.write_submission(layout, tmp_path, {"2.2.1": swallow}, others="reference")
+    kits.write_submission(layout, tmp_path, {"2.2.1": swallow}, others="reference")
     result = grader.grade(tmp_path)
     assert points(result) == full_points() | {"2.2.1": 0}
     entry = next(entry for entry in result["todos"] if entry["id"] == "2.2.1")
@@ -558,7 +560,7 @@ def test_answer_key_grades_the_visible_checks_of_a_student_edition(answer_key, l
     text = good.read_text()
     assert "/h0" not in text  # visible inputs only
     student = Grader(None, answer_key=good, time_limit=TIME_LIMIT)
-    blocks.write_submission(layout, tmp_path / "kit", others="reference")
+    kits.write_submission(layout, tmp_path / "kit", others="reference")
     result = student.grade(tmp_path / "kit", todos=["1.1.1", "2.2.1", "2.2.3"])
     assert points(result) == {"1.1.1": 2, "2.2.1": 2, "2.2.3": 5}
     assert result["one_mistake_one_place"] is False
@@ -589,7 +591,7 @@ def test_a_kit_of_some_files_holds_the_kit_modules_they_import(tmp_path):
     (tmp_path / "hwlib" / "_todo.py").write_text("class TodoNotDone(NotImplementedError):\n    pass\n")
     settings = tmp_path / "hwlib" / "settings.py"
     settings.write_text("from hwlib._todo import TodoNotDone  # noqa: F401\n" + settings.read_text())
-    files = blocks.composite_files(blocks.load_layout(tmp_path), {}, set(), only=checks.SETTINGS_ONLY["1.3.3"])
+    files = kits.composite_files(blocks.load_layout(tmp_path), {}, set(), only=checks.SETTINGS_ONLY["1.3.3"])
     assert set(files) == {"hwlib/__init__.py", "hwlib/settings.py", "hwlib/_todo.py"}
     assert files["hwlib/__init__.py"] == ""  # a package's own __init__ is left out, as before
 
@@ -599,7 +601,7 @@ def test_the_preview_of_a_kit_without_a_todo_s_markers_says_it_is_not_graded(ans
     has no block there, and is "not graded" with the reason (not a KeyError); the others are graded."""
     key = tmp_path / "key.json"
     write_answer_key(KIT, key)
-    blocks.write_submission(layout, tmp_path / "kit", others="reference")
+    kits.write_submission(layout, tmp_path / "kit", others="reference")
     logreg = tmp_path / "kit" / "hwlib" / "logreg.py"
     logreg.write_text("\n".join(line for line in logreg.read_text().split("\n")
                                 if not re.match(r"\s*### (BEGIN|END) TODO 2\.2\.1\s*$", line)))

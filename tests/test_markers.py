@@ -26,7 +26,7 @@ import nbformat
 import pytest
 
 from hwtools import markers
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, blocks
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, blocks, kits
 from instructor.release import ANSWER_KEY, build_student_edition, kit_files, transform_notebook
 
 KIT = Path(__file__).resolve().parents[1]
@@ -167,7 +167,7 @@ def test_strict_adds_the_instructor_s_rules_and_the_grader_reads_without_them():
 
 def test_the_grader_names_a_marker_an_editor_broke(tmp_path):
     layout = blocks.load_layout(KIT)
-    blocks.write_submission(layout, tmp_path, others="reference")
+    kits.write_submission(layout, tmp_path, others="reference")
     path = tmp_path / "hwlib" / "finite_diff.py"
     path.write_text(path.read_text().replace("### BEGIN TODO 1.2.1", "# BEGIN TODO 1.2.1").replace("### END TODO 1.2.1", "# END TODO 1.2.1"))
     read = blocks.read_submission(tmp_path, layout)

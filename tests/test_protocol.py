@@ -17,7 +17,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from hwtools.grade import broker, channel, served
+from hwtools.grade import broker
+from hwtools.grade.in_sandbox import channel, served
 
 
 class FakeWorker:
@@ -379,10 +380,10 @@ def test_a_worker_that_stops_reading_is_killed_at_the_run_s_wall_limit(tmp_path)
     and the worker is killed."""
     import threading
 
-    from hwtools.grade import reference, sandbox
+    from hwtools.grade import kits, sandbox
 
     kit = tmp_path / "kit"
-    for relative, text in reference.runtime_files().items():
+    for relative, text in kits.sandboxed_files().items():
         (kit / relative).parent.mkdir(parents=True, exist_ok=True)
         (kit / relative).write_text(text)
     (kit / "_hwgrade" / "runtime.py").write_text(SILENT_RUNTIME % BIG)
@@ -441,9 +442,9 @@ def test_an_answer_or_a_served_call_larger_than_its_case_needs_is_refused_before
 def real_training_records(copies, iterations=2):
     """A real 1.3.2 run that follows eq. (4), whose records hold every evaluation at theta +- h e_i
     ``copies`` times (one seed): the case that made the judge pair every copy with every other."""
-    from hwtools.grade import cartpole_checks
+    from hwtools.grade.checks import p1_cartpole
 
-    args = cartpole_checks.make_real_training(np.random.default_rng(0), 0)
+    args = p1_cartpole.make_real_training(np.random.default_rng(0), 0)
     args["iterations"] = iterations
     h, rate = args["fd_step"], args["learning_rate"]
     theta, history, rewards, points, scores = np.asarray(args["initial_params"], dtype=np.float64), [], [0.0], [], []
@@ -469,19 +470,19 @@ def real_training_records(copies, iterations=2):
 
 
 def test_the_real_run_judge_of_1_3_2_is_linear_in_its_records_and_capped():
-    from hwtools.grade import cartpole_checks
+    from hwtools.grade.checks import p1_cartpole
 
     args, result = real_training_records(1)
-    assert cartpole_checks.judge_real_rewards(args, result, None, []).passed
+    assert p1_cartpole.judge_real_rewards(args, result, None, []).passed
     wrong = dict(result, values=dict(result["values"], rewards=result["values"]["rewards"] + [0, 0, 1]))
-    assert "is no evaluation of theta[2]" in cartpole_checks.judge_real_rewards(args, wrong, None, []).actual
-    args, result = real_training_records(cartpole_checks.MAX_JUDGED_EVALUATIONS // 18)  # just under the cap
+    assert "is no evaluation of theta[2]" in p1_cartpole.judge_real_rewards(args, wrong, None, []).actual
+    args, result = real_training_records(p1_cartpole.MAX_JUDGED_EVALUATIONS // 18)  # just under the cap
     started = time.process_time()
-    assert cartpole_checks.judge_real_rewards(args, result, None, []).passed
+    assert p1_cartpole.judge_real_rewards(args, result, None, []).passed
     assert time.process_time() - started < 2.0, "the judge paired every recorded evaluation with every other"
-    args, result = real_training_records(cartpole_checks.MAX_JUDGED_EVALUATIONS)
+    args, result = real_training_records(p1_cartpole.MAX_JUDGED_EVALUATIONS)
     started = time.process_time()
-    verdict = cartpole_checks.judge_real_rewards(args, result, None, [])
+    verdict = p1_cartpole.judge_real_rewards(args, result, None, [])
     assert not verdict.passed and "more than the 2000 this check reads" in verdict.actual
     assert time.process_time() - started < 2.0
 

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import reference, sandbox, user_sandbox, worker
+from hwtools.grade import broker, kits, sandbox, user_sandbox
+from hwtools.grade.in_sandbox import channel
 from hwtools.grade.sandbox import Sandbox
 import containers
 from process_watch import SUBREAPER, adopted_zombies, live_processes, real_uid, reap_adopted_orphans
@@ -44,20 +45,23 @@ def make_kit(folder, body):
     code = "import os, sys, time\nimport numpy as np\n\n\ndef sigmoid(z):\n" + textwrap.indent(body, "    ") + \
         "\n    return values\n"
     (package / "logreg.py").write_text(code)
-    for relative, text in reference.runtime_files().items():
+    for relative, text in kits.sandboxed_files().items():
         (folder / "kit" / relative).parent.mkdir(parents=True, exist_ok=True)
         (folder / "kit" / relative).write_text(text)
     return folder / "kit"
 
 
 def run(kit, box, cases=1, time_limit=None):
-    request = {"cases": [{"id": f"c{i}", "probe": "sigmoid", "args": {"z": np.array([float(i)])}} for i in range(cases)]}
-    return box.run(kit, [request], time_limit)
+    """A worker on ``kit`` run through cases c0, c1, ... of the sigmoid probe (z = [i]) as the grader
+    drives it, nothing served: (how the run ended, {case id: result} of the answered cases)."""
+    cases = [(f"c{i}", "sigmoid", {"z": np.array([float(i)])}) for i in range(cases)]
+    return broker.run_cases(box.start(kit, time_limit), None, cases, [], None)
 
 
-def values(outcome):
+def values(ran):
+    outcome, results = ran
     assert outcome.status == "ok", (outcome.status, outcome.detail, outcome.stderr_tail)
-    result = outcome.answers[0]["results"][0]
+    result = results["c0"]
     assert result["status"] == "ok", result["error"]
     return result["values"]["values"]
 
@@ -236,8 +240,8 @@ def test_memory_limit(mode, request, tmp_path):
 def test_endless_loop_ends_at_the_time_limit(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, "while True:\n    pass\nvalues = None")
-    outcome = run(kit, box, time_limit=2)
-    assert outcome.status in ("timeout", "ended") and not outcome.answers
+    outcome, results = run(kit, box, time_limit=2)
+    assert outcome.status in ("timeout", "ended") and not results
     assert outcome.status == "timeout" and "CPU-time limit" in outcome.detail, outcome
 
 
@@ -249,7 +253,7 @@ def test_the_time_limit_counts_cpu_so_a_slow_machine_is_no_time_out(mode, reques
     slow = make_kit(tmp_path / "slow", "time.sleep(2.5)\nvalues = np.array([1.0])")
     assert values(run(slow, box, time_limit=1)).tolist() == [1.0]
     stuck = make_kit(tmp_path / "stuck", "time.sleep(10_000)\nvalues = None")
-    outcome = run(stuck, box, time_limit=0.1)
+    outcome, _ = run(stuck, box, time_limit=0.1)
     assert outcome.status == "timeout" and "wall-clock" in outcome.detail, outcome
 
 
@@ -272,8 +276,9 @@ def test_a_child_that_holds_the_error_stream_does_not_hold_the_grader(mode, requ
     """))
     holder = lambda: live_processes(lambda cmdline: cmdline == f"sleep\0{CHILD_SECONDS}.25\0".encode())  # noqa: E731
     try:
-        outcome = run(kit, box, time_limit=5)
-        assert values(outcome).tolist() == [1.0]
+        ran = run(kit, box, time_limit=5)
+        assert values(ran).tolist() == [1.0]
+        outcome = ran[0]
         assert outcome.seconds < CHILD_SECONDS / 2, "the grader waited for the child"
         assert "the child holds stderr" in outcome.stderr_tail
         if mode != "plain":  # without a sandbox such a child outlives the run: docs/grading.md says so
@@ -341,10 +346,9 @@ def test_prints_and_exits_do_not_forge_answers(mode, request, tmp_path):
             sys.exit(0)
         values = z + 1
     """))
-    outcome = run(kit, box, cases=2)
-    results = outcome.answers[0]["results"]
-    assert results[0]["status"] == "ok" and results[0]["values"]["values"].tolist() == [1.0]
-    assert results[1]["status"] == "error" and results[1]["error"].startswith("SystemExit")
+    _, results = run(kit, box, cases=2)
+    assert results["c0"]["status"] == "ok" and results["c0"]["values"]["values"].tolist() == [1.0]
+    assert results["c1"]["status"] == "error" and results["c1"]["error"].startswith("SystemExit")
 
 
 @pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
@@ -358,8 +362,8 @@ def test_garbage_on_the_answer_channel_is_caught(mode, request, tmp_path):
                 pass
         values = z
     """))
-    outcome = run(kit, box)
-    assert outcome.status in ("garbled", "ended") or outcome.answers[0]["results"][0]["values"]["values"].tolist() == [0.0]
+    outcome, results = run(kit, box)
+    assert outcome.status in ("garbled", "ended") or results["c0"]["values"]["values"].tolist() == [0.0]
 
 
 def test_without_bubblewrap_the_grader_says_so(monkeypatch):
@@ -444,14 +448,14 @@ def test_the_grader_can_put_itself_under_a_memory_limit():
 
 def test_messages_carry_numbers_only():
     message = {"cases": [{"id": "a", "args": {"x": np.arange(3.0), "n": 2, "name": "f"}}]}
-    assert worker.unpack(worker.pack(message))["cases"][0]["args"]["n"] == 2
+    assert channel.unpack(channel.pack(message))["cases"][0]["args"]["n"] == 2
     with pytest.raises(TypeError):
-        worker.pack({"x": np.array([object()], dtype=object)})
+        channel.pack({"x": np.array([object()], dtype=object)})
     buffer = io.BytesIO()
     np.savez(buffer, __json__=np.array('{"__array__": "a0"}'), a0=np.array([object()], dtype=object))
     with pytest.raises(ValueError):  # a pickled object array is refused, never unpickled
-        worker.unpack(buffer.getvalue())
-    assert worker.fingerprint(message) == worker.fingerprint({"cases": [{"id": "a", "args": {
+        channel.unpack(buffer.getvalue())
+    assert channel.fingerprint(message) == channel.fingerprint({"cases": [{"id": "a", "args": {
         "x": np.arange(3.0), "n": 2, "name": "f"}}]})
 
 
@@ -484,7 +488,7 @@ def test_two_runs_of_student_code_never_overlap(mode, request, tmp_path):
     starts only after every process of the first one is gone (its child too), so no lock, inotify
     watch or shared timing can carry anything between them."""
     box = request.getfixturevalue(mode)
-    kits = [make_kit(tmp_path / name, textwrap.dedent("""
+    two = [make_kit(tmp_path / name, textwrap.dedent("""
         started = time.time()
         if os.fork() == 0:  # a child that would live on, holding a lock
             import fcntl
@@ -494,7 +498,7 @@ def test_two_runs_of_student_code_never_overlap(mode, request, tmp_path):
         values = np.array([started, time.time()])
     """)) for name in ("a", "b")]
     outcomes = [None, None]
-    threads = [threading.Thread(target=lambda index=index: outcomes.__setitem__(index, run(kits[index], box)))
+    threads = [threading.Thread(target=lambda index=index: outcomes.__setitem__(index, run(two[index], box)))
                for index in range(2)]
     for thread in threads:
         thread.start()
@@ -513,7 +517,7 @@ def test_with_a_reference_and_no_sandbox_no_student_code_runs(monkeypatch, tmp_p
 
     marker = tmp_path / "ran"
     layout = blocks.load_layout(KIT)
-    blocks.write_submission(layout, tmp_path / "subs" / "alice", {"2.2.1": (
+    kits.write_submission(layout, tmp_path / "subs" / "alice", {"2.2.1": (
         f"open({str(marker)!r}, 'w').close()\nvalues = 1.0 / (1.0 + np.exp(-z))")}, others="reference")
     sandbox.probe_isolation.cache_clear()
     user_sandbox.probe.cache_clear()
@@ -567,7 +571,7 @@ def test_a_submission_s_runs_share_a_wall_clock_budget(isolated, tmp_path):
     from hwtools.grade.grader import BUDGET_FACTOR
 
     layout = blocks.load_layout(KIT)
-    blocks.write_submission(layout, tmp_path / "loops", {todo: "while True:\n    pass" for todo in checks.GRADED_TODOS})
+    kits.write_submission(layout, tmp_path / "loops", {todo: "while True:\n    pass" for todo in checks.GRADED_TODOS})
     with Grader(KIT, time_limit=2, jobs=2) as grader:
         grader.grade(KIT, todos=["2.2.1"])  # the reference's answers and servers first: not the submission's time
         started = time.monotonic()

@@ -180,7 +180,7 @@ def test_a_student_hands_in_what_the_grader_grades_in_full(python, natural_kit, 
     """One command writes the zip and the report's PDF; the zip is what the instructor's grader reads
     from a class's folder, and it earns every automatic point."""
     from hwtools.grade import AUTO_POINTS, Grader
-    from hwtools.grade.classroom import open_submission
+    from hwtools.grade.submissions import open_submission
 
     result = run_in(python, natural_kit, "-m", "hwtools.handin", "alovelac", "--name", "Ada Lovelace")
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]

@@ -34,7 +34,7 @@ import pytest
 
 from day_one import kit_env, student_python
 from hwtools import handin, markers
-from hwtools.check import untouched_todos
+from hwtools.not_done import untouched_todos
 from hwtools.grade import AUTO_POINTS, blocks, classroom, submissions
 from hwtools.todos import TODO_BY_ID
 from instructor.release import ReleaseError, kit_files, student_files

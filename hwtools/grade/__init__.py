@@ -26,23 +26,31 @@ The result is a JSON-serialisable dict:
   itself failed on that TODO (it is then not graded, and a class's status says so);
 * ``notes``, ``seconds``.
 
-Modules: ``blocks`` (finding the TODO code, the kits), ``sandbox`` (launching a worker, its limits;
-``bwrap_sandbox``: bubblewrap; ``user_sandbox`` and ``confine``: the fallback without namespaces, a
-user of its own per run), ``worker`` (the entry point of every sandboxed process) and ``runtime``
-(its loop, as a student's worker or as the reference server), ``probes`` (what a check calls in the
-kit), ``served`` (which other TODOs' functions a run may call; ``served_env``: ``gym.make``'s
-CartPole, answered by the grader), ``channel`` (the message format, read strictly), ``broker`` (the
-grader's side of one run: numbering, schemas; ``episodes``: its records of every episode),
-``reference`` (the reference servers), ``checks`` (what is checked: the table and the cases;
-``cartpole_checks`` and ``logreg_checks``: each problem's inputs and judges; ``verdicts``: how an
-answer is judged and shown), ``judging`` (points and feedback), ``mistakes`` (the known mistake a
-failing answer matches), ``blame`` (the TODO at fault, in the preview), ``suspects`` (what a block
-reaches for, named in the feedback), ``grader`` (the trusted side), ``answer_key`` (the student
-edition's key), ``feedback`` (the text report); ``hwtools.cases`` rebuilds a visible input in a
-student's kernel. A class: ``submissions`` (reading a submission without trusting
-it), ``classroom`` (running a class), ``gradebook``, ``class_feedback`` (Markdown), ``progress``,
-``safe_text``; Gradescope: ``gradescope``. This package's trusted side imports nothing from
-``hwlib`` and nothing heavier than numpy.
+Where things are (``docs/design.md`` traces one grade through them):
+
+* the trusted side, one submission: ``grader`` (``Grader``: kits, runs, judging), ``blocks``
+  (finding the TODO code, reading a submission), ``kits`` (the kits the worker runs), ``broker``
+  (the grader's side of one run: numbering, schemas, served calls; ``episodes``: its records of
+  every CartPole episode), ``reference`` (the reference servers), ``judging`` (points and
+  feedback), ``mistakes`` (the known mistake a failing answer matches), ``blame`` (the TODO at
+  fault, in the preview), ``suspects`` (what a block reaches for), ``answer_key`` (the student
+  edition's key), ``feedback`` (the text report and the one wording of a failure);
+* what is checked: ``checks/`` (one module per problem, TODO by TODO: behaviours, points, inputs,
+  probes, judges, tolerances; ``checks/verdicts``: how an answer is compared and shown);
+* the sandbox launchers: ``sandbox`` (a worker's process, its limits, one untrusted run at a
+  time), ``bwrap_sandbox`` (bubblewrap), ``user_sandbox`` and ``confine`` (the fallback without
+  namespaces: a user of its own per run, a seccomp filter);
+* what runs inside the sandbox: ``in_sandbox/`` (copied whole into every kit as ``_hwgrade/``:
+  the worker's loop, the probes, the served-call proxies, ``gym.make``'s served CartPole, the
+  message format); it imports nothing from the trusted side;
+* a class: ``classroom`` (running one), ``submissions`` (reading a submission without trusting
+  it), ``gradebook``, ``class_feedback`` (Markdown), ``class_summary`` (each check's pass rate,
+  each named mistake's count), ``class_progress`` (the terminal's progress line), ``safe_text``;
+* Gradescope: ``gradescope_autograder`` (runs in its container; ``instructor/gradescope_bundle.py``
+  builds the bundle).
+
+``hwtools.cases`` rebuilds a visible input in a student's kernel. The trusted side imports nothing
+from ``hwlib`` and nothing heavier than numpy.
 """
 
 from hwtools.grade.grader import Grader, GradingError, write_answer_key

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from hwtools.grade import mistakes
-from hwtools.grade.channel import fingerprint
+from hwtools.grade.in_sandbox.channel import fingerprint
 
 ANSWER_KEY = Path(__file__).resolve().with_name("answer_key.json")
 ANSWER_KEY_VERSION = 2

@@ -1,23 +1,22 @@
-"""The TODO blocks: find them, read a submission's code safely, and build the kits the worker runs.
+"""The TODO blocks: find them, and read a submission's code without trusting it.
 
 A block is fenced by two marker lines, ``### BEGIN <style> 1.2.1`` and ``### END <style> 1.2.1``,
 whose style is SOLUTION in the instructor's kit and TODO in the student edition; a submission
 may use either. Only the code between the markers is ever taken from a submission: everything
 around it (signatures, door checks, the ``return`` after the block) comes from the reference kit.
 
+``load_layout`` reads a kit's ``hwlib/`` (the reference's: its files and blocks, ``KitLayout``);
+``read_submission`` takes each TODO's code from a submission's files, by that layout;
+``check_body`` says whether a block stands alone. The kits built from them: ``kits.py``.
 Standard library only: the grader's trusted process imports this module, never ``hwlib``.
 """
 
 from __future__ import annotations
 
 import ast
-import hashlib
-import io
 import os
-import shutil
 import stat
 import threading
-import tokenize
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
@@ -25,7 +24,6 @@ from hwtools import markers
 
 MAX_FILE_BYTES = 1_000_000  # a submitted source file larger than this is not read
 PACKAGE = "hwlib"
-Block = markers.Block  # todo, begin, end, indent, body (the lines between the markers), style, module_level
 
 
 class SubmissionError(Exception):
@@ -156,37 +154,8 @@ def read_submission(root, layout):
     return submission
 
 
-def write_submission(layout, out_dir, bodies=None, others="stub", style="TODO"):
-    """Write a kit's ``hwlib/`` under ``out_dir`` as a student would hand it in: the blocks of the
-    TODOs in ``bodies`` ({todo: code text, or a list of texts, one per block}) hold that code, every
-    other block holds the reference solution (``others="reference"``) or a stub (``"stub"``: ``pass``,
-    or ``NAME = None`` at module level), between ``### BEGIN/END {style}`` markers. For tests and
-    generated classes of submissions."""
-    bodies = dict(bodies or {})
-    out_dir = Path(out_dir)
-    for relative, text in layout.files.items():
-        file_blocks = layout.blocks_by_file.get(relative, [])
-
-        def choose(block, number):
-            if block.todo in bodies:
-                codes = bodies[block.todo]
-                code = codes if isinstance(codes, str) else codes[number]
-                lines = reindent(markers.split_lines(code.strip("\r\n")), block.indent)
-            elif others == "reference":
-                lines = list(block.body)
-            else:
-                lines = [f"{block.indent}# TODO {block.todo}: your code here"]
-                lines += [f"{block.indent}pass"] if not block.module_level else stub_lines(block, block.todo)
-            return [f"{block.indent}### BEGIN {style} {block.todo}"] + lines + [f"{block.indent}### END {style} {block.todo}"]
-
-        target = out_dir / relative
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text(compose_file(text, file_blocks, choose) if file_blocks else text, encoding="utf-8")
-    return out_dir
-
-
 # --------------------------------------------------------------------------------------------
-# The reference kit and the composite kits built from it
+# A kit's layout, and a block on its own
 # --------------------------------------------------------------------------------------------
 
 
@@ -269,15 +238,6 @@ def reindent(body, indent):
     return out
 
 
-def _has_code(lines):
-    try:
-        tokens = tokenize.generate_tokens(io.StringIO("\n".join(lines) + "\n").readline)
-        return any(token.type not in (tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT,
-                                      tokenize.DEDENT, tokenize.ENDMARKER) for token in tokens)
-    except (tokenize.TokenError, IndentationError, SyntaxError):
-        return True
-
-
 _PARSING = threading.Lock()
 
 
@@ -301,124 +261,3 @@ def check_body(body, module_level):
         line = (error.lineno or 1) - (0 if module_level else 1)
         return f"line {max(line, 1)} of the block: {error.msg}"
     return None
-
-
-def stub_lines(block, todo):
-    """What stands in for a block that a check does not run: a raise in a function, ``NAME = None``
-    for each name a module-level block assigns."""
-    if not block.module_level:
-        return [f'{block.indent}raise NotImplementedError("TODO {todo} is not part of this check")']
-    names = []
-    try:
-        tree = parse("\n".join(reindent(block.body, "")))
-    except SyntaxError:
-        tree = ast.Module(body=[], type_ignores=[])
-    for node in tree.body:
-        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
-        names.extend(target.id for target in targets if isinstance(target, ast.Name))
-    return [f"{name} = None" for name in names] or ["pass"]
-
-
-def compose_file(text, blocks, choose):
-    """``text`` with every block replaced by ``choose(block, number)`` (lines; ``number`` counts the
-    blocks of that TODO in this file), markers dropped."""
-    lines = text.split("\n")
-    out, position, seen = [], 0, {}
-    for block in blocks:
-        number = seen[block.todo] = seen.get(block.todo, -1) + 1
-        out.extend(lines[position:block.begin])
-        out.extend(choose(block, number))
-        position = block.end + 1
-    out.extend(lines[position:])
-    return "\n".join(out)
-
-
-def composite_files(layout, student_bodies, reference_todos, only=None):
-    """{relative path: text} of a kit built from ``layout`` (the reference): blocks of the TODOs in
-    ``student_bodies`` get that code, blocks in ``reference_todos`` keep the reference's, every
-    other block is stubbed. ``only``: the relative paths to include, with the kit's modules they
-    import (``kit_imports``: ``hwlib/machinery/todos.py`` once a module imports it), and an empty package
-    ``__init__`` where the reference's is left out."""
-    files = {}
-    if only is not None:
-        only = kit_imports(layout.files, only)
-    for relative, text in layout.files.items():
-        if only is not None and relative not in only:
-            continue
-        blocks = layout.blocks_by_file.get(relative, [])
-
-        def choose(block, number):
-            if block.todo in student_bodies:
-                lines = reindent(student_bodies[block.todo][number], block.indent)
-                if not _has_code(lines):
-                    lines.append(f"{block.indent}pass")
-                return lines
-            if block.todo in reference_todos:
-                return list(block.body)
-            return stub_lines(block, block.todo)
-
-        files[relative] = compose_file(text, blocks, choose) if blocks else text
-    if only is not None:
-        for relative in list(files):
-            for parent in PurePosixPath(relative).parents:
-                init = (parent / "__init__.py").as_posix()
-                if parent.parts and init not in files:
-                    files[init] = ""
-    return files
-
-
-def kit_imports(files, paths):
-    """``paths`` and every module of ``files`` ({relative path: text}) they import, directly or not
-    (``import hwlib.x``, ``from hwlib.x import y``, ``from hwlib import x``, ``from . import x``);
-    never a package's ``__init__.py``."""
-    found, queue = set(), [path for path in paths if path in files]
-    while queue:
-        relative = queue.pop()
-        if relative in found:
-            continue
-        found.add(relative)
-        try:
-            tree = parse(files[relative])
-        except SyntaxError:
-            continue
-        package = PurePosixPath(relative).parent.parts
-        for node in ast.walk(tree):
-            if isinstance(node, ast.Import):
-                names = [alias.name.split(".") for alias in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                base = list(package[:len(package) - node.level + 1]) if node.level else []
-                base += node.module.split(".") if node.module else []
-                names = [base] + [base + [alias.name] for alias in node.names]
-            else:
-                continue
-            for parts in names:
-                candidate = "/".join(parts) + ".py"  # packages get an empty __init__ (see composite_files)
-                if candidate in files and candidate not in found:
-                    queue.append(candidate)
-    return found | set(paths)
-
-
-def files_digest(files):
-    digest = hashlib.sha256()
-    for relative in sorted(files):
-        digest.update(relative.encode() + b"\0" + files[relative].encode() + b"\0")
-    return digest.hexdigest()
-
-
-def write_files(files, out_dir):
-    """Write {relative path: text} under ``out_dir`` (read-only files)."""
-    out_dir = Path(out_dir)
-    for relative, text in sorted(files.items()):
-        target = out_dir / relative
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text(text, encoding="utf-8")
-        target.chmod(0o444)
-    return out_dir
-
-
-def remove_tree(path):
-    def make_writable(function, failed_path, _info):
-        os.chmod(failed_path, 0o700)
-        function(failed_path)
-
-    shutil.rmtree(path, onerror=make_writable)

@@ -11,7 +11,7 @@ visible ones first, then, only once each of those is answered, the hidden ones. 
 * an answer must fit its probe's schema (``probes.RESULTS``: names, dtype kinds, dimensions) and
   hold at most ``answer_limit(args)`` numbers (4 x its case's input, plus 256), checked before it is
   kept; a served call and the reference's reply to it at most ``call_limit(args)`` (2 x the
-  case's input, plus 1,024). A message is bounded by ``channel.py`` before anything is decoded.
+  case's input, plus 1,024). A message is bounded by ``in_sandbox/channel.py`` before anything is decoded.
 * every write to the worker, like every read, ends at the run's deadline (``Sandbox``): a worker
   that stops reading while the grader replies is stopped as timed out and killed.
 * the worker's words (errors, warnings) are kept, cut to one line, for visible cases only. Once
@@ -22,7 +22,7 @@ visible ones first, then, only once each of those is answered, the hidden ones. 
   the functions the call passed, bounded in number. Every CartPole episode is played on the
   trusted side: ``run_policy`` by the reference server, with the grader's own seed where the
   call gave none (or in the call's ``gym.make`` environment), and every ``reset`` and ``step``
-  of a ``gym.make("CartPole-v1")`` environment the code plays itself (``served_env.py``); in
+  of a ``gym.make("CartPole-v1")`` environment the code plays itself (``in_sandbox/served_env.py``); in
   ``train_known`` cases ``eval_params`` is the known objective, computed here. The grader
   records each episode, whatever door it came through (``episodes.py``: parameters or the
   actions taken, seed, start state, reward), and each evaluation (parameters, rollouts, seed,
@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hwtools.grade import channel, probes, served, served_env
+from hwtools.grade.in_sandbox import channel, probes, served, served_env
 from hwtools.grade.episodes import (  # noqa: F401 - Records: the records' type, given here too
     EVALUATION, IN_ENV, MAX_STEPS, RUN_POLICY, Environments, Episode, Records, start_of,
 )

@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 TMPFS_BYTES = 64 * 1024**2
-WORKER = Path(__file__).resolve().with_name("worker.py")
+WORKER = Path(__file__).resolve().parent / "in_sandbox" / "worker.py"  # the entry point of every sandboxed process
 
 
 @functools.lru_cache(maxsize=None)
@@ -57,9 +57,9 @@ def _system_binds():
     return args
 
 
-def bwrap_options(python, kit_dir, worker=WORKER):
+def bwrap_options(python, kit_dir):
     """bubblewrap's options (given to it through a pipe, not on its command line) that run a
-    Python on ``kit_dir`` with ``worker`` as ``/grader/worker.py``."""
+    Python on ``kit_dir`` with ``WORKER`` as ``/grader/worker.py``."""
     args = ["--unshare-all", "--unshare-user", "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL",
             "--die-with-parent", "--new-session", "--hostname", "sandbox"]
     args += _system_binds()
@@ -68,7 +68,7 @@ def bwrap_options(python, kit_dir, worker=WORKER):
     for path in python_paths(python):
         if not path.startswith("/usr/"):
             args += ["--ro-bind", path, path]
-    args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(worker), "/grader/worker.py",
+    args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(WORKER), "/grader/worker.py",
              "--chdir", "/tmp", "--clearenv"]
     for key, value in worker_env("/tmp/home").items():
         args += ["--setenv", key, value]

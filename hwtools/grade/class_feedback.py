@@ -8,15 +8,12 @@ from __future__ import annotations
 import re
 
 from hwtools.grade import blocks
-from hwtools.grade.feedback import failure_words
+from hwtools.grade.feedback import failure_words, points
 from hwtools.grade.safe_text import printable
 from hwtools.grade.submissions import KIT_DEPTH, MAX_PY_BYTES, size_text
 
 STOPPED_NOTE = "the run of your code stopped"  # how the grader's note on a stopped run begins
 
-
-def _points(value):
-    return f"{value:g}"
 
 
 def _fence(text):
@@ -41,7 +38,7 @@ def todo_markdown(entry, visible_only=False):
     and no points, for feedback given before the grades are published."""
     lines = []
     if not visible_only and entry["auto_possible"]:
-        lines.append(f"**{_points(entry['auto_earned'])} of {_points(entry['auto_possible'])} automatic point(s)** "
+        lines.append(f"**{points(entry['auto_earned'])} of {points(entry['auto_possible'])} automatic point(s)** "
                      f"({entry['status']})")
     elif not entry["auto_possible"]:
         lines.append("Graded by hand" + ("; the check below is for the grader, it gives no points." if entry["checks"]
@@ -57,7 +54,7 @@ def todo_markdown(entry, visible_only=False):
         inputs = f"{check['visible_inputs']} visible"
         inputs += f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else ""
         where = f"; failed on a {check['failed_on']} input" if check["failed_on"] else ""
-        lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}, {_points(check['points'])} pt: "
+        lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}, {points(check['points'])} pt: "
                      f"{check['check']} ({inputs} input(s){where})")
     failure = entry["first_failure"]
     if failure and (not failure["hidden"] or not visible_only):
@@ -73,7 +70,7 @@ def todo_markdown(entry, visible_only=False):
         lines += [f"- note: {md_escape(note)}" for note in notes]
     if entry["manual_possible"] and not visible_only:
         lines.append("")
-        lines.append(f"By hand ({_points(entry['manual_possible'])} pt): {md_escape(entry['manual'])}")
+        lines.append(f"By hand ({points(entry['manual_possible'])} pt): {md_escape(entry['manual'])}")
     return "\n".join(lines)
 
 
@@ -82,12 +79,12 @@ def summary_table(result):
     for entry in result["todos"]:
         auto = "–"
         if entry["auto_possible"]:
-            auto = f"{_points(entry['auto_earned'])} / {_points(entry['auto_possible'])}"
-        manual = _points(entry["manual_possible"]) if entry["manual_possible"] else "–"
+            auto = f"{points(entry['auto_earned'])} / {points(entry['auto_possible'])}"
+        manual = points(entry["manual_possible"]) if entry["manual_possible"] else "–"
         lines.append(f"| {entry['id']} | {entry['title']} | {auto} | {manual} | {entry['status']} |")
     total = result["total"]
-    lines.append(f"| **total** | | **{_points(total['auto_earned'])} / {_points(total['auto_possible'])}** | "
-                 f"{_points(total['manual_possible'])} | |")
+    lines.append(f"| **total** | | **{points(total['auto_earned'])} / {points(total['auto_possible'])}** | "
+                 f"{points(total['manual_possible'])} | |")
     return "\n".join(lines)
 
 
@@ -107,8 +104,8 @@ def feedback_markdown(student_result):
         lines += ["", "Automatic points: **0**. Nothing of this submission was run.", "", UNGRADED_HELP]
         return "\n".join(lines) + "\n"
     total = result["total"]
-    lines += ["", f"Automatic points: **{_points(total['auto_earned'])} of {_points(total['auto_possible'])}**; "
-                  f"{_points(total['manual_possible'])} more points are graded by hand."]
+    lines += ["", f"Automatic points: **{points(total['auto_earned'])} of {points(total['auto_possible'])}**; "
+                  f"{points(total['manual_possible'])} more points are graded by hand."]
     lines += ["", "Each TODO is checked with your code for that TODO and the reference solution for every other "
                   "one, so a mistake costs points only where it was made."]
     for note in student_result.notes + result["notes"]:

@@ -12,7 +12,7 @@ without their ``hwlib/`` folder) is read as ``hwlib/``, and a folder whose only 
 Nothing in a submission is trusted: ``submissions.py`` reads it (what is copied, what rejects
 it), and the student's code then runs only in the grader's sandbox. This module runs the class:
 it grades the submissions, saves each result, and writes the gradebook (``gradebook.py``) and
-the feedback (``class_feedback.py``), with a progress line (``progress.py``).
+the feedback (``class_feedback.py``), with a progress line (``class_progress.py``).
 
 Submissions are read, prepared and judged side by side (``--jobs``, default one per CPU) by ONE
 ``Grader`` (the reference's answers are computed once for the class), while their student code
@@ -49,11 +49,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hwtools import markers
-from hwtools.grade import blocks, class_summary
+from hwtools.grade import class_summary, kits
 from hwtools.grade.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
 from hwtools.grade.gradebook import StudentResult, gradebook_text, status_of
-from hwtools.grade.progress import Progress
+from hwtools.grade.class_progress import Progress
 from hwtools.grade.submissions import Unusable, file_name, kit_file_names, open_submission
 
 STATE_VERSION = 1
@@ -92,12 +92,12 @@ def grading_fingerprint(grader):
     ``hwlib``, its hidden checks, the grader's own code and the tables it reads, the limits, the
     Python and the sandbox. A saved result is reused only under the same fingerprint."""
     digest = hashlib.sha256(f"state {STATE_VERSION}\0".encode())
-    digest.update(blocks.files_digest(grader.layout.files).encode())
+    digest.update(kits.files_digest(grader.layout.files).encode())
     hidden = Path(grader.reference) / HIDDEN_CHECKS
     digest.update(hidden.read_bytes() if hidden.is_file() else b"no hidden checks")
-    code = sorted(Path(__file__).resolve().parent.glob("*.py")) + [Path(__file__).resolve().parents[1] / "todos.py"]
-    for path in code:
-        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    grade = Path(__file__).resolve().parent  # every module of the grader, in its folders too (checks/, in_sandbox/)
+    for path in sorted(grade.rglob("*.py")) + [grade.parent / "todos.py"]:
+        digest.update(path.relative_to(grade.parent).as_posix().encode() + b"\0" + path.read_bytes())
     box = grader.sandbox
     for part in (box.python, box.isolated, box.how, box.time_limit, box.memory_limit):
         digest.update(f"\0{part}".encode())

@@ -11,7 +11,7 @@ An episode reaches the records in one of four ways (``door``), each played on th
 
 ``determined`` says whether the start state follows from a seed: a seeded reset, or a later
 episode of an environment whose last seeded reset started its chain. ``Records.arrays()`` gives
-the judges (``cartpole_checks.py``) numpy arrays; an own loop's reset that no step followed is
+the judges (``checks/p1_cartpole.py``) numpy arrays; an own loop's reset that no step followed is
 not an episode (a reset to seed the environment, then ``reset()`` per episode, is gymnasium's
 idiom). ``Environments`` keeps the state of each ``gym.make`` environment of one run.
 Standard library and numpy only.
@@ -26,8 +26,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 RUN_POLICY, IN_ENV, OWN_LOOP, EVALUATION = 0, 1, 2, 3
-DOORS = {RUN_POLICY: "run_policy", IN_ENV: "run_policy in an environment", OWN_LOOP: "an env.reset/env.step loop",
-         EVALUATION: "eval_params"}
 MAX_STEPS = 200_000  # steps of own loops recorded per run
 MAX_ENVS = 2_000  # gym.make environments per run
 MAX_OPEN_ENVS = 32  # open at once; beyond, the least recently used one is closed

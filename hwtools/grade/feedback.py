@@ -5,7 +5,8 @@ from __future__ import annotations
 import textwrap
 
 
-def _points(value):
+def points(value):
+    """Points as the reports write them: 7, 1.5, 0.3."""
     return f"{value:g}"
 
 
@@ -26,13 +27,13 @@ def render(result, details=True):
     width = max(len(entry["title"]) for entry in result["todos"]) + 2
     lines.append(f"{'TODO':<7}{'what':<{width}}{'automatic':>12}  {'by hand':>8}  status")
     for entry in result["todos"]:
-        auto = f"{_points(entry['auto_earned'])} / {_points(entry['auto_possible'])}" if entry["auto_possible"] else "-"
-        manual = _points(entry["manual_possible"]) if entry["manual_possible"] else "-"
+        auto = f"{points(entry['auto_earned'])} / {points(entry['auto_possible'])}" if entry["auto_possible"] else "-"
+        manual = points(entry["manual_possible"]) if entry["manual_possible"] else "-"
         status = entry["status"] + (f" (depends on {', '.join(entry['blamed_on'])})" if entry.get("blamed_on") else "")
         lines.append(f"{entry['id']:<7}{entry['title']:<{width}}{auto:>12}  {manual:>8}  {status}")
     total = result["total"]
-    lines.append(f"{'total':<7}{'':<{width}}{_points(total['auto_earned']) + ' / ' + _points(total['auto_possible']):>12}"
-                 f"  {_points(total['manual_possible']):>8}")
+    lines.append(f"{'total':<7}{'':<{width}}{points(total['auto_earned']) + ' / ' + points(total['auto_possible']):>12}"
+                 f"  {points(total['manual_possible']):>8}")
     for note in result["notes"]:
         lines.extend(_wrapped(f"note: {note}", ""))
     if details:
@@ -41,8 +42,8 @@ def render(result, details=True):
                 continue
             lines.append("")
             if entry["auto_possible"]:
-                lines.append(f"{entry['id']} {entry['title']}: {_points(entry['auto_earned'])} of "
-                             f"{_points(entry['auto_possible'])} automatic point(s)")
+                lines.append(f"{entry['id']} {entry['title']}: {points(entry['auto_earned'])} of "
+                             f"{points(entry['auto_possible'])} automatic point(s)")
             else:
                 lines.append(f"{entry['id']} {entry['title']}: graded by hand; the check below is for the grader")
             if entry.get("blame"):
@@ -51,7 +52,7 @@ def render(result, details=True):
                 mark = "pass" if check["passed"] else "FAIL"
                 inputs = f"{check['visible_inputs']} visible" + (f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else "")
                 where = f"; failed on a {check['failed_on']} input" if check["failed_on"] else ""
-                lines.extend(_wrapped(f"[{mark}] {_points(check['points'])} pt: {check['check']} ({inputs} input(s){where})",
+                lines.extend(_wrapped(f"[{mark}] {points(check['points'])} pt: {check['check']} ({inputs} input(s){where})",
                                       "  "))
             failure = entry["first_failure"]
             if failure:
@@ -62,7 +63,7 @@ def render(result, details=True):
             for note in entry["notes"]:
                 lines.extend(_wrapped(f"note: {note}", "  "))
             if entry["manual_possible"]:
-                lines.extend(_wrapped(f"by hand ({_points(entry['manual_possible'])} pt): {entry['manual']}", "  "))
+                lines.extend(_wrapped(f"by hand ({points(entry['manual_possible'])} pt): {entry['manual']}", "  "))
     return "\n".join(lines) + "\n"
 
 

@@ -9,6 +9,7 @@ import csv
 import io
 from dataclasses import dataclass, field
 
+from hwtools.grade.feedback import points
 from hwtools.grade.safe_text import printable
 from hwtools.todos import AUTO_POINTS, TODOS
 
@@ -50,17 +51,14 @@ def status_of(result):
     return "; ".join(parts) or GRADED
 
 
-def _points(value):
-    return f"{value:g}"
-
 
 def gradebook_header():
     """The gradebook's columns: student, status, one per TODO's automatic points, the automatic
     total, one (empty) per TODO's points graded by hand, notes; maxima in the headers."""
     header = ["student", "status"]
-    header += [f"{todo.id} {todo.title} (/{_points(todo.auto)})" for todo in TODOS if todo.auto]
-    header.append(f"auto total (/{_points(AUTO_POINTS)})")
-    header += [f"{todo.id} by hand: {todo.manual_what if todo.auto else todo.title} (/{_points(todo.manual)})"
+    header += [f"{todo.id} {todo.title} (/{points(todo.auto)})" for todo in TODOS if todo.auto]
+    header.append(f"auto total (/{points(AUTO_POINTS)})")
+    header += [f"{todo.id} by hand: {todo.manual_what if todo.auto else todo.title} (/{points(todo.manual)})"
                for todo in TODOS if todo.manual]
     header.append("notes")
     return header
@@ -82,8 +80,8 @@ def row_notes(student_result):
 
 def gradebook_row(student_result):
     row = [_cell(student_result.student), _cell(student_result.status)]
-    row += [_points(student_result.auto_points(todo.id)) for todo in TODOS if todo.auto]
-    row.append(_points(student_result.auto_total))
+    row += [points(student_result.auto_points(todo.id)) for todo in TODOS if todo.auto]
+    row.append(points(student_result.auto_total))
     row += ["" for todo in TODOS if todo.manual]
     row.append(_cell(row_notes(student_result)))
     return row

@@ -5,7 +5,7 @@ never ``hwlib``, never anything from the submission. For each TODO T it builds a
 student's blocks for T and a stub in every other block, and runs T's cases on it in a sandboxed
 worker (``broker.run_cases``). When the student's code calls another TODO's function (or
 ``run_policy``), the worker forwards the call and the reference server answers it
-(``reference.py``, ``served.py``): a mistake costs points only in the TODO where it was made,
+(``reference.py``, ``in_sandbox/served.py``): a mistake costs points only in the TODO where it was made,
 and no process that runs a student's code holds any reference solution. The reference's own
 answers (``_reference_values``) and the re-scoring services come from the same server.
 
@@ -30,10 +30,10 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from hwtools.grade import answer_key as keys
-from hwtools.grade import blame, blocks, broker, checks, judging, mistakes
+from hwtools.grade import blame, blocks, broker, checks, judging, kits, mistakes
 from hwtools.grade.answer_key import ANSWER_KEY
-from hwtools.grade.channel import fingerprint
-from hwtools.grade.reference import ReferencePool, ServerFailed, runtime_files
+from hwtools.grade.in_sandbox.channel import fingerprint
+from hwtools.grade.reference import ReferencePool, ServerFailed
 from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Budget, Sandbox
 from hwtools.todos import TODO_BY_ID, TODOS
 
@@ -150,11 +150,10 @@ class Grader:
         self.service_time_limit = float(service_time_limit)
         self._memo, self._memo_lock = {}, threading.Lock()
         self._scrub = judging.Scrubber(self.reference_bodies)
-        self._secret_lines = self._scrub.lines
         self.pool = None
         if self.reference is not None:
             server = {todo: bodies for todo, bodies in self.reference_bodies.items() if todo not in NOT_SERVED}
-            self.pool = ReferencePool(self.sandbox, blocks.composite_files(self.layout, server, set()))
+            self.pool = ReferencePool(self.sandbox, kits.composite_files(self.layout, server, set()))
             self._finalizer = weakref.finalize(self, ReferencePool.close, self.pool)
 
     def _exposure(self):
@@ -309,8 +308,8 @@ class Grader:
         bodies = self._parsed_bodies(todo, read, layout)
         if isinstance(bodies, str):
             return bodies
-        files = blocks.composite_files(layout, {todo: bodies}, set(), only=checks.SETTINGS_ONLY.get(todo))
-        return files | runtime_files()
+        files = kits.composite_files(layout, {todo: bodies}, set(), only=checks.SETTINGS_ONLY.get(todo))
+        return files | kits.sandboxed_files()
 
     def _preview_pool(self, read, layout):
         """Without a reference: a server on the student's own kit (each parsed block but 1.3.3's)."""
@@ -321,7 +320,7 @@ class Grader:
             bodies = self._parsed_bodies(todo, read, layout)
             if todo not in NOT_SERVED and not isinstance(bodies, str):
                 own[todo] = bodies
-        return ReferencePool(self.sandbox, blocks.composite_files(layout, own, set()), idle=1.0, trusted=False)
+        return ReferencePool(self.sandbox, kits.composite_files(layout, own, set()), idle=1.0, trusted=False)
 
     def _todo_entry(self, todo, read, layout, pool, budget):
         """The judged result entry of ``todo``: its run (memoized per grader as the entry it gave, so
@@ -336,7 +335,7 @@ class Grader:
             if isinstance(files, str):
                 return self._judge(todo, {"student": files, "reference": self._reference_of(todo)}, pool, notes)
             cases = self.cases[todo]
-            key = _digest(blocks.files_digest(files), pool.digest if pool else "", todo,
+            key = _digest(kits.files_digest(files), pool.digest if pool else "", todo,
                           *[fingerprint({"id": case_id, "args": args}) for case_id, _, args in cases.visible + cases.hidden],
                           len(cases.visible), self.sandbox.time_limit)
             return copy.deepcopy(self._memoized(key, lambda: self._run_and_judge(todo, files, pool, budget, notes),
@@ -367,7 +366,7 @@ class Grader:
 
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
         with tempfile.TemporaryDirectory(prefix="hwgrade-kit-") as scratch:
-            kit = blocks.write_files(files, Path(scratch) / "kit")
+            kit = kits.write_files(files, Path(scratch) / "kit")
             try:
                 return broker.run_cases(self.sandbox.start(kit, budget=budget), todo, visible, hidden, pool)
             finally:
@@ -436,12 +435,12 @@ class Grader:
 
         def signature(solution):
             with tempfile.TemporaryDirectory(prefix="hwgrade-mistake-") as scratch:
-                blocks.write_submission(self.layout, scratch, {todo: list(solution.bodies)}, others="stub")
+                kits.write_submission(self.layout, scratch, {todo: list(solution.bodies)}, others="stub")
                 read = blocks.read_submission(Path(scratch), self.layout)
             files = self._composite(todo, read, self.layout)
             if isinstance(files, str):
                 return None
-            student = self._memoized(("visible", blocks.files_digest(files), todo),
+            student = self._memoized(("visible", kits.files_digest(files), todo),
                                      lambda: self._run_now(todo, files, _phase(visible.visible), [], self.pool))
             run = {"student": student, "reference": self._reference_values(todo)}
             services = self._services(self._service_requests(todo, run, visible), self.pool)

@@ -4,7 +4,7 @@
 result dict: points per behaviour (every input, visible and hidden, must pass; property points
 only up to 30% beside a wrong value), the first failing visible check with the known mistake the
 answers match (``mistakes.py``), its input and the line that rebuilds it
-(``probes.rebuild_line``), expected and actual value, and notes. What a student may read is built
+(``checks.rebuild_line``), expected and actual value, and notes. What a student may read is built
 from the grader's words and the student's own values on visible inputs only; a hidden input's
 failure shows only the check's description. Text that holds a line of the reference solution is
 replaced (``Scrubber``).
@@ -13,8 +13,9 @@ replaced (``Scrubber``).
 from __future__ import annotations
 
 from hwtools.grade import broker, checks, mistakes, suspects
-from hwtools.grade.channel import fingerprint, text
-from hwtools.grade.probes import rebuild_line
+from hwtools.grade.checks.behaviour import MOST_KEPT
+from hwtools.grade.checks.verdicts import Verdict, show
+from hwtools.grade.in_sandbox.channel import fingerprint, text
 from hwtools.todos import TODO_BY_ID
 
 _STATUS = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed"}
@@ -90,7 +91,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
                 try:
                     verdict = behaviour.judge(args, result, expected, answers)
                 except Exception as error:  # noqa: BLE001 - malformed values from the worker
-                    verdict = checks.Verdict(False, "", text(f"unexpected values ({type(error).__name__}: {error})"))
+                    verdict = Verdict(False, "", text(f"unexpected values ({type(error).__name__}: {error})"))
                 verdicts.append((visible, case_id, args, verdict))
         passed = bool(verdicts) and all(verdict.passed for _, _, _, verdict in verdicts)
         failed_on = None if passed else ("visible" if any(v and not d.passed for v, _, _, d in verdicts) else "hidden")
@@ -117,7 +118,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
         entry["notes"].append(f"warning (not a failure): {scrub(warning)}")
     if known is not None and any(check["failed_on"] == "visible" for check in entry["checks"]):
         mine = mistakes.signature(cases.visible, results, entry)
-        if not mistakes.untouched(mine):  # a stub matches no mistake: the table is not even made
+        if not mistakes.stopped_at_stubs(mine):  # a stub matches no mistake: the table is not even made
             name_mistake(entry, mistakes.name(todo, mine, known(todo)), scrub)
     return entry
 
@@ -125,7 +126,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
 def _visible_failure(behaviour, case_id, args, verdict, scrub):
     """What a failing visible input shows: the input, the line that rebuilds it in the student's
     kernel, expected and actual, where they differ and the tolerance (``feedback.FAILURE_FIELDS``)."""
-    failure = {"input": scrub(checks.show(args)), "reproduce": rebuild_line(case_id, behaviour.probe),
+    failure = {"input": scrub(show(args)), "reproduce": checks.rebuild_line(case_id, behaviour.probe),
                "expected": scrub(verdict.expected), "actual": scrub(verdict.actual)}
     failure.update({name: scrub(getattr(verdict, name)) for name in ("difference", "tolerance") if getattr(verdict, name)})
     return {name: value for name, value in failure.items() if value or name in ("expected", "actual", "input")}
@@ -147,16 +148,16 @@ def name_mistake(entry, named, scrub=str):
 
 
 def _beside_a_right_value(todo, earned, passed, notes):
-    """``earned`` with property points (``Behaviour.beside``) counted only up to ``checks.MOST_KEPT``
+    """``earned`` with property points (``Behaviour.beside``) counted only up to ``MOST_KEPT``
     of the TODO where the value they stand beside is wrong: repeatable episodes do not make a
     wrong mean partly right."""
     lifted = [b for b in checks.BEHAVIOURS_BY_TODO[todo] if b.beside and passed[b.key] and not passed[b.beside]]
     if not lifted:
         return earned
-    capped = max(earned - sum(b.points for b in lifted), min(earned, checks.MOST_KEPT * TODO_BY_ID[todo].auto))
+    capped = max(earned - sum(b.points for b in lifted), min(earned, MOST_KEPT * TODO_BY_ID[todo].auto))
     if capped < earned:
         notes.append(f"the points of its checks of properties ({', '.join(b.key for b in lifted)}) count only up to "
-                     f"{checks.MOST_KEPT:.0%} of TODO {todo} while its value is wrong")
+                     f"{MOST_KEPT:.0%} of TODO {todo} while its value is wrong")
     return capped
 
 

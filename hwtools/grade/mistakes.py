@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from hwtools.grade import checks
-from hwtools.grade.verdicts import Tolerance, same_numbers
+from hwtools.grade.checks.verdicts import Tolerance, same_numbers
 
 WRONG_SOLUTIONS = Path("instructor") / "wrong_solutions"
 PROPERTY_TOLERANCE = Tolerance(1e-9, 1e-9)  # values of checks judged by property (1.3.x): the judges' own
@@ -109,7 +109,7 @@ def signature(visible, results, entry):
     return Signature(cases, failing, rules)
 
 
-def untouched(mine):
+def stopped_at_stubs(mine):
     """True if every visible case of signature ``mine`` stopped at a TODO not done yet (a stub)."""
     return all("is not done yet" in case.get("error", "") for case in mine.cases.values())
 

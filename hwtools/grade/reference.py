@@ -8,7 +8,7 @@ re-score a run (the notebook's training run of 1.3.3).
 
 A ``ReferencePool`` keeps a few servers for one ``Grader``: each is a worker process
 (``Sandbox.start``) on one private copy of the reference kit, told by its first message to serve
-(``runtime.py``). A run borrows one for its whole conversation (``acquire``/``release``); a server
+(``in_sandbox/runtime.py``). A run borrows one for its whole conversation (``acquire``/``release``); a server
 that failed or timed out is ended, never lent again. Idle servers end after ``idle`` seconds, and
 all of them with ``close()``. The kit is written in a folder only this user can read. A pool is
 ``trusted`` when its kit holds no student code (the reference's; the student edition's preview
@@ -29,22 +29,19 @@ Interface (for the grader and the broker)::
 
 from __future__ import annotations
 
-import functools
 import queue
 import tempfile
 import threading
 import time
-import weakref
 from pathlib import Path
 
-from hwtools.grade import blocks
-from hwtools.grade.channel import ChannelTimeout
+from hwtools.grade import kits
+from hwtools.grade.in_sandbox.channel import ChannelTimeout
 
 LIFETIME = 3600.0  # seconds a server lives at most (its wall-clock and CPU limit)
 SETUP_SECONDS = 120.0  # to start and import the kit
 IDLE_SECONDS = 10.0  # an unused server ends after this long
 KEEP = 4  # idle servers kept at most
-RUNTIME_MODULES = ("channel", "served", "served_env", "probes", "runtime")
 
 
 class ServerFailed(Exception):
@@ -164,20 +161,14 @@ class ReferencePool:
 
     def __init__(self, sandbox, files, idle=IDLE_SECONDS, lifetime=LIFETIME, trusted=True):
         self.sandbox, self.idle, self.lifetime, self.trusted = sandbox, float(idle), float(lifetime), trusted
-        self.files = dict(files) | runtime_files()
-        self.digest = blocks.files_digest(self.files)
+        self.files = dict(files) | kits.sandboxed_files()
+        self.digest = kits.files_digest(self.files)
         self._folder, self._idle, self._lock, self._timer, self._closed = None, [], threading.Lock(), None, False
-        self.started = 0  # servers started so far (for tests and benchmarks)
-        self.live = weakref.WeakSet()  # servers not yet closed
-
-    def process_ids(self):
-        """The process ids of this pool's live servers (the launcher's process of each)."""
-        return {server.process.process.pid for server in list(self.live) if not server.closed}
 
     def _kit(self):
         if self._folder is None:
             self._folder = Path(tempfile.mkdtemp(prefix="hwgrade-reference-"))  # mode 0700
-            blocks.write_files(self.files, self._folder / "kit")
+            kits.write_files(self.files, self._folder / "kit")
         return self._folder / "kit"
 
     def acquire(self, need=0.0):
@@ -191,10 +182,7 @@ class ReferencePool:
                     return server
                 threading.Thread(target=server.close, daemon=True).start()
             kit = self._kit()
-            self.started += 1
-        server = ReferenceServer(self.sandbox, kit, max(self.lifetime, need + SETUP_SECONDS + 60), self.trusted)
-        self.live.add(server)
-        return server
+        return ReferenceServer(self.sandbox, kit, max(self.lifetime, need + SETUP_SECONDS + 60), self.trusted)
 
     def release(self, server, broken=False):
         if server is None:
@@ -250,7 +238,7 @@ class ReferencePool:
         for server in idle:
             server.close()
         if self._folder is not None:
-            blocks.remove_tree(self._folder)
+            kits.remove_tree(self._folder)
             self._folder = None
 
     def __del__(self):
@@ -258,18 +246,3 @@ class ReferencePool:
             self.close()
         except Exception:  # noqa: BLE001 - at interpreter exit anything may be gone
             pass
-
-
-def runtime_files():
-    """{relative path: text} of the process side of grading, which the grader puts in every kit it
-    runs (as the package ``_hwgrade``): the loop, the message format, the served table, the probes."""
-    return dict(_runtime_files())
-
-
-@functools.lru_cache(maxsize=1)
-def _runtime_files():
-    here = Path(__file__).resolve().parent
-    files = {"_hwgrade/__init__.py": '"""The grader\'s process side (a copy of hwtools/grade/runtime.py and what it imports)."""\n'}
-    for name in RUNTIME_MODULES:
-        files[f"_hwgrade/{name}.py"] = (here / f"{name}.py").read_text(encoding="utf-8")
-    return tuple(files.items())

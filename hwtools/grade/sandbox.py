@@ -70,14 +70,12 @@ import tempfile
 import threading
 import time
 import uuid
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from hwtools.grade import worker as protocol
-from hwtools.grade.channel import ChannelTimeout
-from hwtools.grade.bwrap_sandbox import bwrap_options, options_pipe, probe_isolation, worker_env
+from hwtools.grade.bwrap_sandbox import WORKER, bwrap_options, options_pipe, probe_isolation, worker_env
+from hwtools.grade.in_sandbox import channel
+from hwtools.grade.in_sandbox.channel import ChannelTimeout
 
-WORKER = Path(__file__).resolve().with_name("worker.py")
 GiB = 1024**3
 DEFAULT_TIME_LIMIT = 60.0  # seconds of CPU time per worker run
 DEFAULT_MEMORY_LIMIT = 1 * GiB  # address space per worker run
@@ -108,20 +106,6 @@ class Budget:
     def spend(self, seconds):
         with self._lock:
             self.spent += seconds
-
-
-@dataclass
-class RunOutcome:
-    """What came back from one worker run: ``answers[i]`` answers ``requests[i]`` (fewer if the run
-    ended early). ``status``: ok, timeout, ended (the worker stopped before answering everything),
-    or garbled (an answer that is not a valid message)."""
-
-    answers: list = field(default_factory=list)
-    status: str = "ok"
-    detail: str = ""
-    stderr_tail: str = ""
-    seconds: float = 0.0
-    exit_code: int | None = None
 
 
 def wall_limit(time_limit):
@@ -219,30 +203,6 @@ class Sandbox:
         return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit), trusted,
                              (not trusted) if exclusive is None else exclusive, budget)
 
-    def run(self, kit_dir, requests, time_limit=None):
-        """Run the cases of ``requests`` (each ``{"cases": [{id, probe, args}, ...]}``) on a worker on
-        ``kit_dir``, one by one, with the grader's protocol (``broker.run_cases``; no function is
-        served); the grader's runtime is copied into the kit if it is not there. Returns a RunOutcome
-        whose ``answers[i]["results"]`` answer ``requests[i]``. For tests: the grader drives its runs
-        itself (``grader.py``)."""
-        from hwtools.grade import broker, reference  # noqa: PLC0415 - the loop is the broker's; it does not import this module
-
-        for relative, text in reference.runtime_files().items():
-            target = Path(kit_dir) / relative
-            if not target.exists():
-                target.parent.mkdir(parents=True, exist_ok=True)
-                target.write_text(text, encoding="utf-8")
-        cases = [(case["id"], case["probe"], case["args"]) for request in requests for case in request["cases"]]
-        ran, results = broker.run_cases(self.start(kit_dir, time_limit), None, cases, [], None)
-        outcome = RunOutcome(status=ran.status, detail=ran.detail, stderr_tail=ran.stderr_tail, seconds=ran.seconds,
-                             exit_code=ran.exit_code)
-        for request in requests:
-            answered = [dict(results[case["id"]], id=case["id"]) for case in request["cases"] if case["id"] in results]
-            if len(answered) < len(request["cases"]):
-                break
-            outcome.answers.append({"results": answered})
-        return outcome
-
 
 class WorkerProcess:
     """One running worker: its standard input takes requests, its standard output gives answers,
@@ -321,7 +281,7 @@ class WorkerProcess:
         self.begin()
         deadline = self.deadline if deadline is None else min(deadline, self.deadline)
         try:
-            protocol.write_message(self.process.stdin.fileno(), message, deadline)
+            channel.write_message(self.process.stdin.fileno(), message, deadline)
         except ChannelTimeout:
             raise ChannelTimeout(BUDGET_WORDS if self._budget_bound else
                                  f"the wall-clock limit of {wall_limit(self.time_limit):.0f} s was reached "
@@ -442,14 +402,14 @@ def _read_answer(fd, deadline):
             continue
         if length is None:
             length = int.from_bytes(buffer[:8], "big")
-            if length > protocol.MAX_MESSAGE_BYTES:
-                return f"garbled:an answer of {length} bytes, more than the {protocol.MAX_MESSAGE_BYTES} accepted"
+            if length > channel.MAX_MESSAGE_BYTES:
+                return f"garbled:an answer of {length} bytes, more than the {channel.MAX_MESSAGE_BYTES} accepted"
             buffer, need = b"", length
             if length == 0:
                 return "garbled:an empty answer"
             continue
         try:
-            answer = protocol.unpack(buffer)
+            answer = channel.unpack(buffer)
         except Exception as error:  # noqa: BLE001 - anything the worker's side wrote is untrusted
             return f"garbled:an answer that is not a valid message ({type(error).__name__})"
         if not isinstance(answer, dict):

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
 from hwtools import markers
-from hwtools.grade import blocks
+from hwtools.grade import blocks, kits
 from hwtools.grade.safe_text import printable
 
 MB = 1_000_000
@@ -396,7 +396,7 @@ def open_submission(path, kit_names=()):
             raise Unusable("unreadable", "not a folder or a .zip file")
         yield OpenedSubmission(kit, digest, notes)
     finally:
-        blocks.remove_tree(scratch)
+        kits.remove_tree(scratch)
 
 
 PLAIN_ID = re.compile(r"^[A-Za-z0-9@+_-][A-Za-z0-9._@+-]{0,99}$")  # kept as they are: no "~" or "%", 100 at most

@@ -152,6 +152,13 @@ def processes_of(uid):
     return found
 
 
+def _become(uid, gid):
+    """In a forked child: become user ``uid`` of group ``gid`` for good, without supplementary groups."""
+    os.setgroups([])
+    os.setresgid(gid, gid, gid)
+    os.setresuid(uid, uid, uid)
+
+
 def kill_user(uid, gid, rounds=50):
     """Kill every process of ``uid``: ``kill(-1, SIGKILL)`` as that user (one system call reaches all
     of them, forks included), then by a ``/proc`` scan, until a scan finds none. True when none is left."""
@@ -159,9 +166,7 @@ def kill_user(uid, gid, rounds=50):
         pid = os.fork()
         if pid == 0:  # the child becomes the user and signals everything that user owns
             try:
-                os.setgroups([])
-                os.setresgid(gid, gid, gid)
-                os.setresuid(uid, uid, uid)
+                _become(uid, gid)
                 os.kill(-1, signal.SIGKILL)
             finally:
                 os._exit(0)
@@ -310,9 +315,7 @@ def readable_by_pool(paths):
         if pid == 0:
             try:
                 os.close(read)
-                os.setgroups([])
-                os.setresgid(entry.pw_gid, entry.pw_gid, entry.pw_gid)
-                os.setresuid(entry.pw_uid, entry.pw_uid, entry.pw_uid)
+                _become(entry.pw_uid, entry.pw_gid)
                 opened = []
                 for number, path in enumerate(paths):
                     try:

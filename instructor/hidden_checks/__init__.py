@@ -2,7 +2,7 @@
 the whole ``instructor/`` folder out).
 
 The grader (``hwtools/grade``) loads this file from the reference kit it grades against and asks
-``hidden_cases(behaviour)`` for each behaviour of ``hwtools/grade/checks.py``. The inputs are made
+``hidden_cases(behaviour)`` for each behaviour of ``hwtools/grade/checks/``. The inputs are made
 by the same generators as the visible ones but from this folder's own seed, plus a few chosen by
 hand, so an answer written for the visible inputs (their values are in the student edition's
 answer key) fails here. A behaviour earns its points only if it passes on these too.
@@ -50,7 +50,7 @@ def _extra_cases(behaviour_id):
 
 
 def hidden_cases(behaviour):
-    """The hidden inputs of one behaviour (a ``hwtools.grade.checks.Behaviour``)."""
+    """The hidden inputs of one behaviour (a ``hwtools.grade.checks.behaviour.Behaviour``)."""
     count = COUNTS.get(behaviour.id, behaviour.visible_count)
     rng = np.random.default_rng([HIDDEN_SEED, int.from_bytes(behaviour.id.encode(), "little") % (2**63)])
     return [behaviour.make(rng, variant) for variant in range(count)] + _extra_cases(behaviour.id)

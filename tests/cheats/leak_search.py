@@ -17,16 +17,16 @@ import zlib
 
 import numpy as np
 
-from hwtools.grade import blocks, classroom, gradescope
+from hwtools.grade import class_feedback, gradebook, gradescope_autograder, kits
 from hwtools.grade.feedback import render
 
 
 def outputs_of(result):
     """Everything a student may read of ``result``: the text report, the JSON, the class feedback
     file and Gradescope's results.json."""
-    student = classroom.StudentResult("student", classroom.status_of(result), result)
-    return [render(result), json.dumps(result), classroom.feedback_markdown(student),
-            json.dumps(gradescope.results_json(result, classroom.status_of(result)))]
+    student = gradebook.StudentResult("student", gradebook.status_of(result), result)
+    return [render(result), json.dumps(result), class_feedback.feedback_markdown(student),
+            json.dumps(gradescope_autograder.results_json(result, gradebook.status_of(result)))]
 
 
 def decodings(texts, rounds=3):
@@ -68,8 +68,8 @@ def decodings(texts, rounds=3):
 def secrets_of(grader, layout):
     """What no output may hold: the lines of the reference's blocks (those not also in the kit's
     public code) and the hidden inputs' numbers (as text, strong formats, and as float64 bytes)."""
-    public = "\n".join(blocks.composite_files(layout, {}, set()).values())
-    lines = [line for line in grader._secret_lines if line not in public]
+    public = "\n".join(kits.composite_files(layout, {}, set()).values())
+    lines = [line for line in grader._scrub.lines if line not in public]
     strong, weak, raw = set(), [], set()
     for todo, cases in grader.cases.items():
         for case_id, _, args in cases.hidden:

@@ -1,21 +1,30 @@
-"""The checks of problem 1 (CartPole): the inputs each behaviour of 1.1.1-1.3.3 is tried on, and its judges.
+"""The checks of problem 1 (CartPole), TODO by TODO: 1.1.1, 1.2.1, 1.3.1, 1.3.2, 1.3.3.
 
-``checks.py`` puts them in its table (``BEHAVIOURS``). The 1.3.x judges read only the grader's own
-records of the episodes and evaluations it answered (``broker.py``), never what the student's
-process says about them. Standard library and numpy only.
+Each TODO's section holds everything its points ride on: how its visible inputs are made (the
+hidden ones come from the same makers with the instructor's seed, ``instructor/hidden_checks``),
+its judges and tolerances, and last its behaviours (``TODO_1_2_1``: key, points, what is checked in
+words, the probe that runs in the sandbox, the maker and the judge), with the line a failing
+visible check prints to rebuild its input (``REBUILT``). A probe's code is in
+``hwtools/grade/in_sandbox/probes.py`` under the same name. The 1.3.x judges read only the
+grader's own records of the episodes and evaluations it answered (``broker.py``, ``episodes.py``),
+never what the student's process says about them. Standard library and numpy only.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from hwtools.grade.checks.behaviour import Behaviour
+from hwtools.grade.checks.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, exact, show
 from hwtools.grade.episodes import OWN_LOOP
-from hwtools.grade.probes import training_objective
-from hwtools.grade.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, exact, show
+from hwtools.grade.in_sandbox.probes import training_objective
+
+REBUILT = {}  # probe: (what the rebuilding line unpacks, what to call then); see checks.rebuild_line
 
 
 # --------------------------------------------------------------------------------------------
-# 1.1.1 the linear policy
+# 1.1.1 the linear policy, equation (1). Probe policy_choices: CartPoleLinearPolicy(params[i])(obs[i])
+# for each row i, as a number, and whether env.step takes it as it is.
 # --------------------------------------------------------------------------------------------
 
 
@@ -69,8 +78,21 @@ def judge_env_actions(args, result, expected, services):
                    f"({refused} of {len(accepted)} rows); int(...) makes it the int 0 or 1")
 
 
+TODO_1_1_1 = (
+    Behaviour("1.1.1", "equation-1", 1.5, "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)): on "
+              "random parameters and states, and on scores of exactly 0 (the tie: action 0, the < is strict) and "
+              "just above and below 0, mixed in among them", "policy_choices", make_policy_states,
+              exact("actions", EXACTLY, _policy_row), exact=True),
+    Behaviour("1.1.1", "env-action", 0.5, "the right actions, each one env.step takes: the int 0 or 1 (a Python bool "
+              "or a numpy integer works too; a float or a numpy bool does not)", "policy_choices", make_policy_states,
+              judge_env_actions, visible_count=1, exact=True),
+)
+REBUILT["policy_choices"] = ("params, obs", "CartPoleLinearPolicy(params[i])(obs[i]) for the row i it names")
+
+
 # --------------------------------------------------------------------------------------------
-# 1.2.1 central differences
+# 1.2.1 central differences, equation (3). Probe finite_diff: scalar_finite_diff(f, x, h), f a known
+# function (probes.known_function).
 # --------------------------------------------------------------------------------------------
 
 
@@ -117,8 +139,23 @@ FD_TOLERANCE = Tolerance(1e-4, 1e-4, "the right formula in float32 is off by at 
                                      "a wrong one by 5e-3 * (|expected| + 1) or more")
 
 
+TODO_1_2_1 = (
+    Behaviour("1.2.1", "equation-3", 7, "central differences, equation (3), with a different step h_i for each "
+              "coordinate: only coordinate i moves, by +-h_i, and the difference is divided by 2 h_i; on functions "
+              "where a forward difference, or a point other than x, is off (the answer: N numbers, shaped like x "
+              "or in a list)", "finite_diff", make_fd_steps, exact("gradient", FD_TOLERANCE, _coordinate),
+              exact=True),
+    Behaviour("1.2.1", "one-step", 3, "central differences with one step h for every coordinate (h a number or "
+              "equal steps), also for a single number x (a number or one number in a list or array)",
+              "finite_diff", make_fd_uniform, exact("gradient", FD_TOLERANCE, _coordinate), visible_count=3,
+              exact=True),
+)
+REBUILT["finite_diff"] = ("f, x, h", "scalar_finite_diff(f, x, h)")
+
+
 # --------------------------------------------------------------------------------------------
-# 1.3.1 eval_params, judged by property on the grader's own records of the episodes it played
+# 1.3.1 eval_params, judged by property on the grader's own records of the episodes it played. Probe
+# eval_params: eval_params(params, num_rollouts, seed=seed), twice.
 # --------------------------------------------------------------------------------------------
 # Every episode is played on the trusted side, whatever door it comes through (``episodes.py``):
 # run_policy (with a seed of the grader's choosing when the call gave none), run_policy in a
@@ -228,8 +265,24 @@ def judge_eval_repeat(args, result, expected, services):
     return Verdict(same_starts and same, "the same number twice, from the same start states", actual)
 
 
+TODO_1_3_1 = (
+    Behaviour("1.3.1", "mean-reward", 3, "eval_params returns the mean total reward of num_rollouts episodes of "
+              "CartPoleLinearPolicy(params), each from its own start state, played with run_policy or in a "
+              "gym.make('CartPole-v1') environment (every reset and step is answered and recorded on the "
+              "grader's side)", "eval_params", make_eval_case, judge_eval_mean, visible_count=3),
+    Behaviour("1.3.1", "different-starts", 1, "the episodes of one evaluation start from different start states "
+              "(counts only up to 30% of the TODO while the mean is wrong)", "eval_params", make_eval_case,
+              judge_eval_distinct, judged_on="mean-reward", beside="mean-reward"),
+    Behaviour("1.3.1", "repeatable", 1, "the same call gives the same number again, from the same start states "
+              "(seeded from the seed argument; counts only up to 30% of the TODO while the mean is wrong)",
+              "eval_params", make_eval_case, judge_eval_repeat, judged_on="mean-reward", beside="mean-reward"),
+)
+REBUILT["eval_params"] = ("params, num_rollouts, seed", "eval_params(params, num_rollouts, seed=seed), twice")
+
+
 # --------------------------------------------------------------------------------------------
-# 1.3.2 the training loop: a known objective, and a real run, on the grader's records
+# 1.3.2 the training loop: a known objective, and a real run, on the grader's records. Probes
+# train_known and train_real: train_cartpole_policy(...) and what it returned.
 # --------------------------------------------------------------------------------------------
 # In ``train_known`` cases every eval_params call is answered by the grader with the case's known
 # objective g (a quartic, so that central differences depend on the step) and recorded with its
@@ -399,8 +452,26 @@ def judge_real_rewards(args, result, expected, services):
     return Verdict(True)
 
 
+TODO_1_3_2 = (
+    Behaviour("1.3.2", "equation-4", 3, "on a known smooth objective g standing in for eval_params (with a quartic "
+              "term, so the step matters), every iteration evaluates g with num_rollouts_per_eval rollouts, takes "
+              "the step of equation (4), theta <- theta + learning_rate * (central-difference gradient of g with "
+              "step fd_step), and records g of the new parameters", "train_known", make_known_training,
+              judge_known_steps),
+    Behaviour("1.3.2", "records-reward", 1, "on the same objective, rewards[t] is g of the parameters after update t",
+              "train_known", make_known_training, judge_known_rewards, judged_on="equation-4"),
+    Behaviour("1.3.2", "real-run", 1, "in a short real CartPole run, every update is equation (4) with central "
+              "differences of step fd_step from eval_params calls with num_rollouts_per_eval episodes, and "
+              "rewards[t] is eval_params of the parameters after update t (on the grader's records of every "
+              "evaluation)", "train_real", make_real_training, judge_real_rewards, visible_count=1),
+)
+REBUILT["train_known"] = ("kwargs, g", "train_cartpole_policy(**kwargs) with g(p) as each eval_params(p, ...)")
+REBUILT["train_real"] = ("kwargs", "train_cartpole_policy(**kwargs)")
+
+
 # --------------------------------------------------------------------------------------------
-# 1.3.3 the learning rate: the notebook's run, with the reference's training code
+# 1.3.3 the learning rate: the notebook's run, with the reference's training code. Probe
+# settings_value: settings.LEARNING_RATE; the service train_notebook (run by the reference server).
 # --------------------------------------------------------------------------------------------
 
 
@@ -452,3 +523,15 @@ def _learning_rate_rule(rewards, top, at):
     if np.any(rewards < 0.5 * np.maximum.accumulate(rewards)):
         return "overshoots"
     return "too_slow" if at is not None or rewards[-1] > rewards[0] else ""
+
+
+TODO_1_3_3 = (
+    Behaviour("1.3.3", "converges", 2, "with your LEARNING_RATE, the notebook's training run (settings.TRAINING_SEED, "
+              "from zeros; the note says whose training code it ran) reaches reward 500 within 7 iterations and "
+              "stays there", "settings_value", make_learning_rate, judge_learning_rate, visible_count=1,
+              services=_learning_rate_services),
+)
+REBUILT["settings_value"] = None  # a setting: nothing to rebuild
+
+
+BEHAVIOURS = TODO_1_1_1 + TODO_1_2_1 + TODO_1_3_1 + TODO_1_3_2 + TODO_1_3_3

@@ -12,8 +12,8 @@ its dtype, shape and size must match the bytes that follow exactly before an arr
 breach raises ``MessageError`` (a ValueError). What a message *says* (its fields) is checked by
 the reader that expects it (``broker.py``).
 
-Standard library and numpy only: this file also runs inside the sandbox (the grader copies it into
-every kit, see ``runtime.py``).
+Standard library and numpy only: this file also runs inside the sandbox (its folder is copied into
+every kit).
 """
 
 from __future__ import annotations

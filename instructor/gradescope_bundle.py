@@ -11,7 +11,7 @@ At the zip's root:
   (``requirements.txt``: the kit's own lines for them); what runs later is made root's to write,
   ``source/`` root's alone; the log's last line says which isolation will grade;
 * ``run_autograder``: run for each submission; grades ``/autograder/submission`` with
-  ``python -m hwtools.grade.gradescope`` and writes ``/autograder/results/results.json``. Paths
+  ``python -m hwtools.grade.gradescope_autograder`` and writes ``/autograder/results/results.json``. Paths
   come from ``AUTOGRADER_ROOT`` (default ``/autograder``) and ``AUTOGRADER_PYTHON`` (default the
   venv's Python), so that a test can run it in a temporary folder laid out like ``/autograder``;
 * what they need: the instructor's ``hwlib/`` (the reference solution), ``hwtools/`` (the grader)
@@ -86,7 +86,7 @@ ROOT="${AUTOGRADER_ROOT:-/autograder}"
 PYTHON="${AUTOGRADER_PYTHON:-$ROOT/venv/bin/python}"
 cd "$ROOT/source"
 export PYTHONPATH="$ROOT/source" PYTHONDONTWRITEBYTECODE=1 MPLBACKEND=Agg
-exec "$PYTHON" -m hwtools.grade.gradescope --root "$ROOT"
+exec "$PYTHON" -m hwtools.grade.gradescope_autograder --root "$ROOT"
 """
 
 
@@ -115,7 +115,7 @@ def grading_requirements(source):
 def bundle_files(source):
     """{name in the zip: (bytes, executable)} of the bundle for the instructor's kit at ``source``."""
     from hwtools.grade.grader import HIDDEN_CHECKS, has_solutions  # noqa: PLC0415 - numpy only when building
-    from hwtools.grade.gradescope import BUNDLE_MARKER  # noqa: PLC0415
+    from hwtools.grade.gradescope_autograder import BUNDLE_MARKER  # noqa: PLC0415
 
     source = Path(source).resolve()
     if not has_solutions(source):

@@ -6,30 +6,12 @@ path and hands over to the loop the grader copied into that kit (``KIT_DIR/_hwgr
 see ``runtime.py``): a process is the student's worker or the reference server according to
 the first message it gets. This file must run on its own (the sandbox mounts it alone as
 ``/grader/worker.py``), so it imports nothing of ``hwtools``.
-
-Imported by the grader instead (as ``hwtools.grade.worker``), it gives the message functions of
-``channel.py``, which the sandbox's launcher uses.
 """
 
 from __future__ import annotations
 
 import os
 import sys
-
-if __name__ != "__main__":  # the grader's side: the message format lives in channel.py
-    from hwtools.grade.channel import (  # noqa: F401 - re-exported for the launcher (sandbox.py) and tests
-        MAX_MESSAGE_BYTES,
-        MAX_TEXT,
-        MessageError,
-        decode,
-        encode,
-        fingerprint,
-        pack,
-        read_exactly,
-        read_message,
-        unpack,
-        write_message,
-    )
 
 
 def _set_limits(cpu_seconds, memory_bytes):

@@ -1,14 +1,17 @@
 """The probes: what the grader's worker calls in the kit for one check, and the values each one answers.
 
-A probe takes one case's arguments (numbers, made by ``checks.py``), calls the homework's
+A probe takes one case's arguments (numbers, made by ``hwtools/grade/checks/``), calls the homework's
 functions in the kit under test and returns its values: {name: number or array}. ``PROBES``
 maps a probe's name to its function and ``RESULTS`` to the schema of its answer (every name,
 its dtype kinds and number of dimensions), which the grader enforces on what comes back: an
 answer with other names, other dtypes or more dimensions fails its case.
 
-The probes run in the sandbox (the grader copies this file into every kit); the grader imports
-this module too, for ``RESULTS`` and the known functions below, so it imports nothing beyond
-numpy at the top: ``hwlib`` is imported inside the probes, from the kit under test only.
+The probes run in the sandbox (this folder is copied into every kit). The trusted side imports
+this module too, for ``RESULTS``, the known functions below and the input builders (``fd_inputs``,
+...: ``hwtools.cases`` rebuilds a visible input with them), so it imports nothing beyond numpy at
+the top: ``hwlib`` is imported inside the probes, from the kit under test only. They are grouped
+by problem, in TODO order, under the names the checks' table gives (``checks/p1_cartpole.py``,
+``checks/p2_logreg.py``).
 """
 
 from __future__ import annotations
@@ -80,8 +83,6 @@ def training_objective(spec):
     return g
 
 
-quadratic_objective = training_objective  # the name checks.py used before the quartic term
-
 
 # --------------------------------------------------------------------------------------------
 # Turning what the student's code returned into numbers
@@ -100,20 +101,6 @@ def numbers(value, what):
         raise TypeError(f"{what} returned something that is not an array of numbers ({error})") from None
 
 
-def action(value):
-    """An action as ``env.step`` takes it: a Python int (bools included), a numpy integer, or a
-    0-d integer array, equal to 0 or 1."""
-    if type(value) is np.ndarray and value.shape == () and value.dtype.kind in "iu":
-        value = value.item()
-    if type(value) not in (int, bool) and not isinstance(value, np.integer):
-        raise TypeError(f"the policy returned a {type(value).__module__}.{type(value).__name__}; "
-                        "env.step takes the int 0 or 1")
-    number = int(value)
-    if number not in (0, 1):
-        raise ValueError(f"the policy returned {number}; actions are 0 (left) and 1 (right)")
-    return number
-
-
 def _import(name):
     module = importlib.import_module(name)
     kit = os.path.realpath(KIT_DIR)
@@ -123,46 +110,8 @@ def _import(name):
 
 
 # --------------------------------------------------------------------------------------------
-# A visible case rebuilt in a student's kernel (``hwtools.cases.visible_case``): the line a failing check prints
-# --------------------------------------------------------------------------------------------
-
-# probe: (what the line unpacks, what to call then); None: nothing to rebuild (a setting)
-REBUILT = {
-    "policy_choices": ("params, obs", "CartPoleLinearPolicy(params[i])(obs[i]) for the row i it names"),
-    "finite_diff": ("f, x, h", "scalar_finite_diff(f, x, h)"),
-    "eval_params": ("params, num_rollouts, seed", "eval_params(params, num_rollouts, seed=seed), twice"),
-    "train_known": ("kwargs, g", "train_cartpole_policy(**kwargs) with g(p) as each eval_params(p, ...)"),
-    "train_real": ("kwargs", "train_cartpole_policy(**kwargs)"),
-    "settings_value": None,
-    "sigmoid": ("z", "sigmoid(z)"),
-    "predict_prob": ("model, X", "model.predict_prob(X)"),
-    "gradient_step": ("model, X, y, learning_rate, steps", "model.gradient_ascent_step(X, y, learning_rate), steps times"),
-    "one_vs_rest": ("model, X, y, learning_rate, n_iters", "model.fit(X, y, learning_rate, n_iters)"),
-    "ll_gradient": ("weights, X, y", "log_likelihood_gradient(weights, X, y)"),
-}
-
-
-
-def rebuild_line(case_id, probe):
-    """The one line of Python that rebuilds visible case ``case_id`` of ``probe``, or "" (a setting)."""
-    rebuilt = REBUILT.get(probe)
-    if rebuilt is None:
-        return ""
-    names, then = rebuilt
-    return f'from hwtools.cases import visible_case; {names} = visible_case("{case_id}")  # then {then}'
-
-
-# --------------------------------------------------------------------------------------------
 # Problem 1
 # --------------------------------------------------------------------------------------------
-
-
-@probe(actions=(_INT, (1,)))
-def probe_policy_actions(args):
-    cartpole = _import("hwlib.cartpole")
-    params, observations = np.asarray(args["params"]), np.asarray(args["obs"])
-    actions = [action(cartpole.CartPoleLinearPolicy(p.copy())(o.copy())) for p, o in zip(params, observations)]
-    return {"actions": np.array(actions, dtype=np.int64)}
 
 
 def _action_kind(value):
@@ -231,9 +180,6 @@ def probe_eval_params(args):
     return {"value": first, "value_again": again}
 
 
-_TRAINING = {"rewards": (_FLOAT, (1,)), "params_history": (_FLOAT, (2,)), "final_params": (_FLOAT, (1,))}
-
-
 def train_inputs(args):
     """The keyword arguments of train_cartpole_policy in a training case."""
     return {"num_training_iterations": int(args["iterations"]), "num_rollouts_per_eval": int(args["rollouts"]),
@@ -241,7 +187,11 @@ def train_inputs(args):
             "initial_params": np.array(args["initial_params"], dtype=np.float64)}
 
 
-def _train(args):
+@probe(rewards=(_FLOAT, (1,)), params_history=(_FLOAT, (2,)), final_params=(_FLOAT, (1,)))
+def probe_train_known(args):
+    """A training run. In ``train_known`` cases every eval_params call is answered by the grader with
+    the known objective ``args["objective"]``; in ``train_real`` cases (the same probe under another
+    name) by the reference server, every episode played there. The grader records each call."""
     policy_search = _import("hwlib.policy_search")
     run = policy_search.train_cartpole_policy(**train_inputs(args))
     return {"rewards": numbers(getattr(run, "rewards", None), "train_cartpole_policy's rewards"),
@@ -249,17 +199,7 @@ def _train(args):
             "final_params": numbers(getattr(getattr(run, "policy", None), "params", None), "the trained policy's params")}
 
 
-@probe(**_TRAINING)
-def probe_train_known(args):
-    """A training run in which every eval_params call is answered by the grader with the known
-    objective ``args["objective"]`` (and recorded there: parameters, rollouts, seed)."""
-    return _train(args)
-
-
-@probe(**_TRAINING)
-def probe_train_real(args):
-    """A real training run: eval_params (and every episode) is answered and recorded by the grader."""
-    return _train(args)
+PROBES["train_real"], RESULTS["train_real"] = PROBES["train_known"], RESULTS["train_known"]
 
 
 @probe(value=(_FLOAT, (0,)))

@@ -1,7 +1,7 @@
 """The sandboxed side of grading: one process's loop, as the student's worker or as the reference server.
 
-``worker.py`` starts this module from the kit the process runs (the grader copies it there as
-``_hwgrade/runtime.py``, with ``channel``, ``served``, ``served_env`` and ``probes``). The grader speaks first,
+``worker.py`` starts this module from the kit the process runs (the grader copies this folder there as
+``_hwgrade/``). The grader speaks first,
 and every message it sends carries its number ``n``:
 
 * ``setup`` {todo, mode}: answered ``ready``. A *worker* (mode "worker") then replaces every

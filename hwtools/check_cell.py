@@ -1,4 +1,4 @@
-"""The check under each TODO: ``check("1.2.1")`` runs that TODO's visible checks through the kit's grader.
+"""The check cell under each TODO: ``check("1.2.1")`` runs that TODO's visible checks through the kit's grader.
 
 A notebook's check cell is one line, ``check("1.2.1")`` (the convention of otter-grader's
 ``grader.check("q1")``). It runs ``python -m hwtools.grade KIT --todo 1.2.1`` in a subprocess, the
@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -38,14 +37,11 @@ import textwrap
 from pathlib import Path
 
 from hwtools.grade.feedback import FAILURE_FIELDS, field_lines
+from hwtools.not_done import KIT_ROOT, not_done_in_text, where
 from hwtools.todos import TODO_BY_ID
 
-KIT_ROOT = Path(__file__).resolve().parents[1]
 WIDTH = 100  # characters per printed line
 TIMEOUT = 1800.0  # seconds for one check in all; the grader's own limit (60 s per run) applies inside
-
-_TODO_ID = re.compile(r"\b(\d+\.\d+\.\d+)\b")
-_NOT_PART = "not part of this check"  # the grader's stub for a TODO that a check does not run
 
 
 class CheckError(RuntimeError):
@@ -53,51 +49,6 @@ class CheckError(RuntimeError):
 
     def _render_traceback_(self):  # IPython shows these lines instead of a traceback
         return [f"The check could not run: {self}"]
-
-
-def not_done_todo(error_type, message, todo=None):
-    """The TODO id that an exception says is not done yet, or None.
-
-    ``error_type`` is the exception's class name, ``message`` its text (``todo``: its ``todo``
-    attribute, if any). A stub raises ``TodoNotDone("1.2.1")``; a ``NotImplementedError`` whose
-    text names a TODO counts too. The grader's own stand-in for a TODO outside a check ("... is not
-    part of this check") does not.
-    """
-    message = str(message)
-    if _NOT_PART in message:
-        return None
-    if error_type == "TodoNotDone":
-        if todo:
-            return str(todo)
-        found = _TODO_ID.search(message)
-        return found.group(1) if found else None
-    if error_type == "NotImplementedError":
-        found = re.search(r"\bTODO (\d+\.\d+\.\d+)\b", message)
-        return found.group(1) if found else None
-    return None
-
-
-def _module_level_names():
-    """{NAME: TODO id} of the TODOs that are a module-level setting ("hwlib/settings.py: LEARNING_RATE")."""
-    names = {}
-    for todo in TODO_BY_ID.values():
-        file, _, what = todo.code.partition(": ")
-        if file.endswith(".py") and what.isidentifier() and what.isupper():
-            names[what] = todo.id
-    return names
-
-
-def not_done_in_text(text):
-    """The TODO id named by the first "TypeName: message" error in a text (the grader's words for
-    an error of the student's code), or None. A setting still None ("LEARNING_RATE is None") is
-    its TODO not done yet."""
-    match = re.match(r"\s*(\w+): (.*)", str(text), re.S)
-    if not match:
-        return None
-    setting = re.match(r"(\w+) is None\b", match.group(2))
-    if setting and setting.group(1) in _module_level_names():
-        return _module_level_names()[setting.group(1)]
-    return not_done_todo(match.group(1), match.group(2))
 
 
 def grade_todo(todo, kit=KIT_ROOT, python=None, timeout=TIMEOUT):
@@ -134,17 +85,6 @@ def _kill(process):
     except (ProcessLookupError, PermissionError):
         pass
     process.wait()
-
-
-def _where(todo):
-    """"scalar_finite_diff in hwlib/finite_diff.py" from the TODO table's "file: function" (its
-    library part where it names a notebook cell too)."""
-    parts = [part.strip() for part in TODO_BY_ID[todo].code.split(";")]
-    code = next((part for part in parts if part.partition(": ")[0].endswith(".py")), parts[0])
-    file, _, what = code.partition(": ")
-    if file.endswith(".ipynb"):
-        return f"{what} of {file}"
-    return f"{what} in {file}" if what else code
 
 
 def _visible_failure(entry, check):
@@ -198,15 +138,15 @@ def check_lines(entry):
     if entry["status"] == "not done yet":  # a grader that says so itself
         not_done, only_not_done = [todo], True
     if only_not_done and todo in not_done:
-        lines = [f"TODO {todo} is not done yet: {_where(todo)}",
+        lines = [f"TODO {todo} is not done yet: {where(todo)}",
                  f"  Write it between ### BEGIN TODO {todo} and ### END TODO {todo}, save the file, and run this check again."]
         others = [other for other in not_done if other != todo]
         if others:
-            lines += _wrap(f"Its checks also run your {' and '.join(f'TODO {o} ({_where(o)})' for o in others)}, "
+            lines += _wrap(f"Its checks also run your {' and '.join(f'TODO {o} ({where(o)})' for o in others)}, "
                            f"not done yet either.", "  ")
         return lines
     if only_not_done:
-        others = " and ".join(f"TODO {other} ({_where(other)})" for other in not_done)
+        others = " and ".join(f"TODO {other} ({where(other)})" for other in not_done)
         return _wrap(f"TODO {todo} ({title}): its checks run your {others}, which "
                      f"{'is' if len(not_done) == 1 else 'are'} not done yet; do {'it' if len(not_done) == 1 else 'them'} "
                      "first, then run this check again.", "")
@@ -230,35 +170,3 @@ def check_lines(entry):
     for note in entry["notes"]:
         lines += _wrap(f"note: {note}", "  ")
     return lines
-
-
-# --------------------------------------------------------------------------------------------
-# Which TODOs are untouched (their blocks still hold the stub), without running anything
-# --------------------------------------------------------------------------------------------
-
-def untouched_todos(kit=KIT_ROOT):
-    """The TODO ids (in the handout's order) whose every code block in ``hwlib/`` and the notebooks'
-    code cells is still the student edition's stub: comments, ``pass``, ``raise TodoNotDone(...)``
-    or ``NAME = None``. Read from the files; nothing is run. (In the instructor's edition: none.)"""
-    from hwtools.grade.blame import untouched  # noqa: PLC0415 - the grader's reading of a stub
-    from hwtools.grade.blocks import SubmissionError, find_blocks  # noqa: PLC0415 - the grader's marker reader
-    from hwtools.markers import is_leftover  # noqa: PLC0415
-
-    kit = Path(kit)
-    bodies = {}
-    sources = [path.read_text(encoding="utf-8") for path in sorted((kit / "hwlib").rglob("*.py"))
-               if not is_leftover(path.relative_to(kit))]
-    for path in sorted((kit / "notebooks").glob("*.ipynb")):
-        try:
-            cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
-        except (OSError, ValueError, KeyError):
-            continue
-        sources += ["".join(cell["source"]) for cell in cells if cell.get("cell_type") == "code"]
-    for text in sources:
-        try:
-            blocks = find_blocks(text.replace("\r\n", "\n"))
-        except SubmissionError:
-            continue
-        for block in blocks:
-            bodies.setdefault(block.todo, []).append(block.body)
-    return [todo for todo in TODO_BY_ID if todo in bodies and all(untouched(body) for body in bodies[todo])]

@@ -1,7 +1,7 @@
 """Gradescope's autograder: grade the submission in ``/autograder/submission`` and write
 ``/autograder/results/results.json``. The bundle's ``run_autograder`` runs
 
-    python -m hwtools.grade.gradescope [--root /autograder]
+    python -m hwtools.grade.gradescope_autograder [--root /autograder]
 
 (built by ``python -m instructor.release gradescope OUT.zip``). The root comes from ``--root``, else
 the environment variable ``AUTOGRADER_ROOT``, else ``/autograder``; under it ``source/`` is the
@@ -54,7 +54,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from hwtools.grade import blocks
+from hwtools.grade import kits
 from hwtools.grade.class_feedback import UNGRADED_HELP, md_escape, todo_markdown
 from hwtools.grade.gradebook import GRADED, NOT_ISOLATED, status_of
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
@@ -63,7 +63,7 @@ from hwtools.grade.grader import Grader, GradingError
 from hwtools.grade.sandbox import DEFAULT_TIME_LIMIT, limit_own_memory
 from hwtools.todos import TODOS
 
-BUNDLE_MARKER = "hwgrade-bundle.json"  # at the root of the bundle's source: written by instructor/gradescope.py
+BUNDLE_MARKER = "hwgrade-bundle.json"  # at the root of the bundle's source: written by instructor/gradescope_bundle.py
 SCRUBBED = ("hwlib", "instructor")  # deleted from the bundle's source once loaded
 
 
@@ -73,7 +73,7 @@ def autograder_paths(root=None):
             "results": root / "results" / "results.json"}
 
 
-def _points(value):
+def _score(value):
     return float(round(value, 2))
 
 
@@ -86,7 +86,7 @@ def _tests(result):
         entry = by_id.get(todo.id)
         name = f"{todo.id} {todo.title}"
         if entry is None:  # nothing was graded: the points test only, at 0
-            tests.append({"name": name, "number": todo.id, "score": 0.0, "max_score": _points(todo.auto),
+            tests.append({"name": name, "number": todo.id, "score": 0.0, "max_score": _score(todo.auto),
                           "status": "failed", "output": "Not graded: see the message at the top.",
                           "output_format": "md", "visibility": "after_published", "tags": ["points"]})
             continue
@@ -95,8 +95,8 @@ def _tests(result):
                       "status": "passed" if visible_pass and entry["checks"] else "failed",
                       "output": todo_markdown(entry, visible_only=True), "output_format": "md",
                       "visibility": "visible", "tags": ["visible inputs"]})
-        earned = _points(entry["auto_earned"])
-        tests.append({"name": name, "number": f"{todo.id}.1", "score": earned, "max_score": _points(todo.auto),
+        earned = _score(entry["auto_earned"])
+        tests.append({"name": name, "number": f"{todo.id}.1", "score": earned, "max_score": _score(todo.auto),
                       "status": "passed" if earned >= todo.auto else "failed",
                       "output": todo_markdown(entry), "output_format": "md",
                       "visibility": "after_published", "tags": ["points", "hidden inputs"]})
@@ -132,7 +132,7 @@ def results_json(result, status, notes=(), seconds=0.0, sandbox="", fault=None):
         notes = list(notes) + result["notes"]
         lines += [""] * bool(notes) + [f"- note: {md_escape(note)}" for note in notes]
     data = {
-        "score": _points(result["total"]["auto_earned"]) if result else 0.0,
+        "score": _score(result["total"]["auto_earned"]) if result else 0.0,
         "execution_time": round(seconds, 1),
         "output": "\n".join(lines).rstrip() + "\n",
         "output_format": "md",
@@ -151,7 +151,7 @@ def _scrub(source):
     for name in SCRUBBED:
         target = source / name
         if target.is_dir() and not target.is_symlink():
-            blocks.remove_tree(target)
+            kits.remove_tree(target)
     return True
 
 
@@ -240,7 +240,7 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.gradescope",
+    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.gradescope_autograder",
                                      description="Gradescope's run_autograder: grade ROOT/submission, write "
                                                  "ROOT/results/results.json.")
     parser.add_argument("--root", help="the autograder folder (default: $AUTOGRADER_ROOT, else /autograder)")

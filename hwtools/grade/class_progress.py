@@ -8,13 +8,11 @@ import shutil
 import threading
 import time
 
+from hwtools.grade.feedback import points
 from hwtools.grade.gradebook import GRADED, NOT_ISOLATED
 from hwtools.grade.safe_text import printable
 from hwtools.todos import AUTO_POINTS
 
-
-def _points(value):
-    return f"{value:g}"
 
 
 def _clock(seconds):
@@ -69,7 +67,7 @@ class Progress:
             self.graded_now += student_result.result is not None and not student_result.reused
             what = printable(f"{student_result.student}: {student_result.status}")
             if student_result.result is not None:
-                what += f", {_points(student_result.auto_total)}/{_points(AUTO_POINTS)}"
+                what += f", {points(student_result.auto_total)}/{points(AUTO_POINTS)}"
             what += " (saved earlier)" if student_result.reused else f" ({student_result.seconds:.1f} s)"
             if not self.tty:
                 self.stream.write(f"{self.line()}  {what}\n")

@@ -1,0 +1,45 @@
+"""What one graded behaviour of a TODO is: ``Behaviour``, one row of the checks' table.
+
+A behaviour is one thing the handout asks, described in words, worth some points, tried on
+visible inputs (made by ``make`` from the public seed: students see them, and the student
+edition's answer key holds the reference's values on them) and on hidden ones (made by the
+same ``make`` from the instructor's seed, ``instructor/hidden_checks``). In the worker, the
+``probe`` of that name (``in_sandbox/probes.py``) calls the student's code on each input; on the
+trusted side ``judge`` gives each answer its ``verdicts.Verdict``. Standard library and numpy only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+PUBLIC_SEED = 20_240_131  # the visible inputs' seed: students may know it
+MOST_KEPT = 0.3  # of a TODO's points, what property points may lift a TODO whose value is wrong to
+
+
+@dataclass(frozen=True)
+class Behaviour:
+    """One graded behaviour of a TODO; it earns its points only when every input, visible and
+    hidden, passes."""
+
+    todo: str
+    key: str
+    points: float
+    description: str
+    probe: str  # the probe the worker runs on each input (in_sandbox/probes.py)
+    make: object  # make(rng, variant) -> the arguments of one case
+    judge: object  # judge(args, result, expected_values, services) -> Verdict
+    visible_count: int = 2
+    services: object = None  # services(args, result) -> [(probe, args)]: reference runs the judge needs
+    exact: bool = False  # judged against the reference's values on the same input
+    judged_on: str = ""  # the key of another behaviour of the TODO whose cases this one judges (it has none of its own)
+    beside: str = ""  # a property of the value behaviour with this key: its points lift a wrong value to MOST_KEPT at most
+
+    @property
+    def id(self):
+        return f"{self.todo}/{self.key}"
+
+    def visible_cases(self):
+        rng = np.random.default_rng([PUBLIC_SEED, int.from_bytes(self.id.encode(), "little") % (2**63)])
+        return [self.make(rng, variant) for variant in range(self.visible_count)]

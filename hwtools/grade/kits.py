@@ -1,0 +1,198 @@
+"""The kits the grader writes and runs: a kit per TODO's run, the reference server's kit, a submission.
+
+A kit is the reference's ``hwlib/`` (``blocks.KitLayout``) with each TODO block chosen: the
+student's code, the reference's, or a stub (``composite_files``), plus the folder that runs in
+the sandbox (``in_sandbox/``, copied whole as ``_hwgrade/``: ``sandboxed_files``). A student's
+run gets its own TODO's code and a stub in every other block, so no kit a student's code runs in
+holds reference code; the reference server's kit holds every solution but 1.3.3's.
+
+Standard library only: the grader's trusted process imports this module, never ``hwlib``.
+"""
+
+from __future__ import annotations
+
+import ast
+import functools
+import hashlib
+import io
+import os
+import shutil
+import tokenize
+from pathlib import Path, PurePosixPath
+
+from hwtools import markers
+from hwtools.grade.blocks import parse, reindent
+
+IN_SANDBOX = Path(__file__).resolve().parent / "in_sandbox"
+SANDBOXED_PACKAGE = "_hwgrade"  # the name the folder in_sandbox/ has in a kit
+
+
+def sandboxed_files():
+    """{relative path: text} of the folder ``in_sandbox/``, as the package ``_hwgrade`` of a kit:
+    what runs in every sandboxed process (worker, loop, probes, proxies, message format)."""
+    return dict(_sandboxed_files())
+
+
+@functools.lru_cache(maxsize=1)
+def _sandboxed_files():
+    return tuple((f"{SANDBOXED_PACKAGE}/{path.relative_to(IN_SANDBOX).as_posix()}", path.read_text(encoding="utf-8"))
+                 for path in sorted(IN_SANDBOX.rglob("*.py")))
+
+
+def stub_lines(block, todo):
+    """What stands in for a block that a check does not run: a raise in a function, ``NAME = None``
+    for each name a module-level block assigns."""
+    if not block.module_level:
+        return [f'{block.indent}raise NotImplementedError("TODO {todo} is not part of this check")']
+    names = []
+    try:
+        tree = parse("\n".join(reindent(block.body, "")))
+    except SyntaxError:
+        tree = ast.Module(body=[], type_ignores=[])
+    for node in tree.body:
+        targets = node.targets if isinstance(node, ast.Assign) else [node.target] if isinstance(node, ast.AnnAssign) else []
+        names.extend(target.id for target in targets if isinstance(target, ast.Name))
+    return [f"{name} = None" for name in names] or ["pass"]
+
+
+def compose_file(text, blocks, choose):
+    """``text`` with every block replaced by ``choose(block, number)`` (lines; ``number`` counts the
+    blocks of that TODO in this file), markers dropped."""
+    lines = text.split("\n")
+    out, position, seen = [], 0, {}
+    for block in blocks:
+        number = seen[block.todo] = seen.get(block.todo, -1) + 1
+        out.extend(lines[position:block.begin])
+        out.extend(choose(block, number))
+        position = block.end + 1
+    out.extend(lines[position:])
+    return "\n".join(out)
+
+
+def _has_code(lines):
+    try:
+        tokens = tokenize.generate_tokens(io.StringIO("\n".join(lines) + "\n").readline)
+        return any(token.type not in (tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT,
+                                      tokenize.DEDENT, tokenize.ENDMARKER) for token in tokens)
+    except (tokenize.TokenError, IndentationError, SyntaxError):
+        return True
+
+
+def composite_files(layout, student_bodies, reference_todos, only=None):
+    """{relative path: text} of a kit built from ``layout`` (the reference): blocks of the TODOs in
+    ``student_bodies`` get that code, blocks in ``reference_todos`` keep the reference's, every
+    other block is stubbed. ``only``: the relative paths to include, with the kit's modules they
+    import (``kit_imports``: ``hwlib/machinery/todos.py`` once a module imports it), and an empty package
+    ``__init__`` where the reference's is left out."""
+    files = {}
+    if only is not None:
+        only = kit_imports(layout.files, only)
+    for relative, text in layout.files.items():
+        if only is not None and relative not in only:
+            continue
+        blocks = layout.blocks_by_file.get(relative, [])
+
+        def choose(block, number):
+            if block.todo in student_bodies:
+                lines = reindent(student_bodies[block.todo][number], block.indent)
+                if not _has_code(lines):
+                    lines.append(f"{block.indent}pass")
+                return lines
+            if block.todo in reference_todos:
+                return list(block.body)
+            return stub_lines(block, block.todo)
+
+        files[relative] = compose_file(text, blocks, choose) if blocks else text
+    if only is not None:
+        for relative in list(files):
+            for parent in PurePosixPath(relative).parents:
+                init = (parent / "__init__.py").as_posix()
+                if parent.parts and init not in files:
+                    files[init] = ""
+    return files
+
+
+def kit_imports(files, paths):
+    """``paths`` and every module of ``files`` ({relative path: text}) they import, directly or not
+    (``import hwlib.x``, ``from hwlib.x import y``, ``from hwlib import x``, ``from . import x``);
+    never a package's ``__init__.py``."""
+    found, queue = set(), [path for path in paths if path in files]
+    while queue:
+        relative = queue.pop()
+        if relative in found:
+            continue
+        found.add(relative)
+        try:
+            tree = parse(files[relative])
+        except SyntaxError:
+            continue
+        package = PurePosixPath(relative).parent.parts
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names = [alias.name.split(".") for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                base = list(package[:len(package) - node.level + 1]) if node.level else []
+                base += node.module.split(".") if node.module else []
+                names = [base] + [base + [alias.name] for alias in node.names]
+            else:
+                continue
+            for parts in names:
+                candidate = "/".join(parts) + ".py"  # packages get an empty __init__ (see composite_files)
+                if candidate in files and candidate not in found:
+                    queue.append(candidate)
+    return found | set(paths)
+
+
+def files_digest(files):
+    digest = hashlib.sha256()
+    for relative in sorted(files):
+        digest.update(relative.encode() + b"\0" + files[relative].encode() + b"\0")
+    return digest.hexdigest()
+
+
+def write_files(files, out_dir):
+    """Write {relative path: text} under ``out_dir`` (read-only files)."""
+    out_dir = Path(out_dir)
+    for relative, text in sorted(files.items()):
+        target = out_dir / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(text, encoding="utf-8")
+        target.chmod(0o444)
+    return out_dir
+
+
+def remove_tree(path):
+    def make_writable(function, failed_path, _info):
+        os.chmod(failed_path, 0o700)
+        function(failed_path)
+
+    shutil.rmtree(path, onerror=make_writable)
+
+
+def write_submission(layout, out_dir, bodies=None, others="stub", style="TODO"):
+    """Write a kit's ``hwlib/`` under ``out_dir`` as a student would hand it in: the blocks of the
+    TODOs in ``bodies`` ({todo: code text, or a list of texts, one per block}) hold that code, every
+    other block holds the reference solution (``others="reference"``) or a stub (``"stub"``: ``pass``,
+    or ``NAME = None`` at module level), between ``### BEGIN/END {style}`` markers. For tests and
+    generated classes of submissions."""
+    bodies = dict(bodies or {})
+    out_dir = Path(out_dir)
+    for relative, text in layout.files.items():
+        file_blocks = layout.blocks_by_file.get(relative, [])
+
+        def choose(block, number):
+            if block.todo in bodies:
+                codes = bodies[block.todo]
+                code = codes if isinstance(codes, str) else codes[number]
+                lines = reindent(markers.split_lines(code.strip("\r\n")), block.indent)
+            elif others == "reference":
+                lines = list(block.body)
+            else:
+                lines = [f"{block.indent}# TODO {block.todo}: your code here"]
+                lines += [f"{block.indent}pass"] if not block.module_level else stub_lines(block, block.todo)
+            return [f"{block.indent}### BEGIN {style} {block.todo}"] + lines + [f"{block.indent}### END {style} {block.todo}"]
+
+        target = out_dir / relative
+        target.parent.mkdir(parents=True, exist_ok=True)
+        target.write_text(compose_file(text, file_blocks, choose) if file_blocks else text, encoding="utf-8")
+    return out_dir
