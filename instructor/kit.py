@@ -20,6 +20,12 @@ from hwtools.todos import TODO_BY_ID
 # notebooks (--nbval-lax); they end in a few minutes. Everything else tests the kit itself and stays here.
 INSTRUCTOR_ONLY = (
     "instructor/",  # the release tool, hidden checks, wrong solutions: one folder
+    # The instructor's guides and the measurements (the edition's README.md is docs/student-README.md:
+    # STUDENT_README in instructor/release.py).
+    "docs/",
+    "benchmarks/RESULTS.md",
+    "tests/test_docs.py",
+    "tests/doc_mentions.py",  # the helper of the docs' tests
     # The release and the student's path through its edition.
     "tests/test_release.py",
     "tests/test_student_edition.py",
