@@ -17,7 +17,7 @@ state. "first" is the first submission, which also computes the reference's answ
 class); the class's seconds come after it, graded by ``grade_class`` as the command line does.
 
 The machine is shared while the kit is being built, so the numbers are noisy: the load average
-is printed with them; the README gives the ones measured at the end.
+is printed with them; benchmarks/RESULTS.md gives the ones measured, dated.
 """
 
 from __future__ import annotations

@@ -5,8 +5,8 @@
 1. **Run All of problem 1** (the instructor's edition, a fresh kernel, as ``nbconvert --execute``
    does): wall clock and CPU seconds (the kernel and everything it ran: the check cells' graders
    and their sandboxes), cell by cell, with the check cells and, side by side in the same run
-   (alternating, so that a change of load hits both alike), a copy without them. The README's
-   target is 30 s on a quiet 2-core box; on a shared machine the CPU seconds are the better guide
+   (alternating, so that a change of load hits both alike), a copy without them. The
+   target is 30 s on a quiet 2-core box (benchmarks/RESULTS.md); on a shared machine the CPU seconds are the better guide
    to what a quiet box gives.
    **Run All of problem 2** the same way, with hwlib's one BLAS thread and, side by side (alternating),
    with ``OPENBLAS_NUM_THREADS`` set to the number of cores (OpenBLAS's own default), cell by cell:

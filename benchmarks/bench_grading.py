@@ -26,7 +26,7 @@ copy in a folder only root may enter (the grader refuses one the pool's users ca
 that time limit (by this kit, and by the baseline's when given), after the reference's answers.
 The kit's stated bound is ``BUDGET_FACTOR`` x the limit of wall clock for all of a submission's runs.
 
-Numbers depend on the machine and on what else runs on it; the README gives the ones measured
+Numbers depend on the machine and on what else runs on it; benchmarks/RESULTS.md gives the ones measured
 on the kit's 2-core machine, with the load at the time.
 """
 

@@ -24,6 +24,10 @@ STUDENT_TESTS = ("tests/conftest.py", "tests/unit/")
 # Left out of the student edition: path prefixes relative to the kit (folders end with "/").
 INSTRUCTOR_ONLY = (
     "instructor/",  # the release tool, hidden checks, wrong solutions: one folder
+    # The instructor's guides and the measurements (the edition's README.md is docs/student-README.md:
+    # STUDENT_README in instructor/release.py).
+    "docs/",
+    "benchmarks/RESULTS.md",
     "tests/",  # but STUDENT_TESTS
     # Its per-sample reference loop spells out the gradient of 2.1.1 and the labels of 2.3.1.
     "benchmarks/bench_logreg.py",

@@ -28,9 +28,9 @@ edition
   tool, the hidden checks and the wrong solutions; every folder of ``tests/`` but the student's own
   tests, ``STUDENT_TESTS``; the benchmarks whose reference loops spell out answers) are left out;
 * ``pyproject.toml`` runs the notebooks with ``--nbval-lax`` (stored notebooks have no outputs
-  to compare, so cells must only run without error), and the README gets a short note for
-  students; README parts between ``<!-- BEGIN INSTRUCTOR ONLY -->`` and
-  ``<!-- END INSTRUCTOR ONLY -->`` are left out (``instructor/given_files.py``).
+  to compare, so cells must only run without error; ``instructor/given_files.py``);
+* the edition's ``README.md`` is ``docs/student-README.md`` (``STUDENT_README``), the students' one
+  page; this kit's own README and ``docs/`` stay with the instructor.
 
 The kit's files are those ``git ls-files --cached --others --exclude-standard`` lists (tracked
 plus untracked, without git-ignored ones); outside a git repository, a sorted walk that skips
@@ -53,18 +53,19 @@ from pathlib import Path
 
 from hwtools.todos import TODO_BY_ID
 from instructor import gradescope_bundle
-from instructor.given_files import transform_pyproject, transform_readme
+from instructor.given_files import transform_pyproject
 from instructor.kit import (HOMEWORK_FOLDERS, INSTRUCTOR_ONLY, STUDENT_TESTS, ReleaseError, file_blocks, find_blocks,
                             is_instructor_only, kit_files, read_text)
 from instructor.notebooks import transform_notebook
 from instructor.stubs import NOT_DONE_MODULE, transform_python
 
 __all__ = [  # what the tests and the other tools take from here (the pieces live in the modules named above)
-    "ANSWER_KEY", "HOMEWORK_FOLDERS", "INSTRUCTOR_ONLY", "STUDENT_TESTS", "ReleaseError", "build_student_edition", "file_blocks",
-    "find_blocks", "is_instructor_only", "kit_files", "main", "student_files", "transform_notebook", "transform_python",
+    "ANSWER_KEY", "HOMEWORK_FOLDERS", "INSTRUCTOR_ONLY", "STUDENT_README", "STUDENT_TESTS", "ReleaseError",
+    "build_student_edition", "file_blocks", "find_blocks", "is_instructor_only", "kit_files", "main", "student_files", "transform_notebook", "transform_python",
 ]
 
 ANSWER_KEY = "hwtools/grade/answer_key.json"  # written by the build: the visible checks' expected values
+STUDENT_README = "docs/student-README.md"  # written as the edition's README.md
 
 
 def student_files(source, keep=frozenset(), replace=None):
@@ -79,8 +80,8 @@ def student_files(source, keep=frozenset(), replace=None):
     require_not_done = NOT_DONE_MODULE in names
     files = {}
     for name in names:
-        if is_instructor_only(name):
-            continue
+        if name == "README.md" or (is_instructor_only(name) and name != STUDENT_README):
+            continue  # the kit's README is the instructor's; the edition's is STUDENT_README
         path = source / name
         data = path.read_bytes()
         executable = bool(path.stat().st_mode & 0o111)
@@ -94,9 +95,7 @@ def student_files(source, keep=frozenset(), replace=None):
             text = transform_notebook(text, name, keep, file_replace)
         elif name == "pyproject.toml":
             text = transform_pyproject(text, name)
-        elif name == "README.md":
-            text = transform_readme(text, name)
-        files[name] = (data if text is None else text.encode("utf-8"), executable)
+        files["README.md" if name == STUDENT_README else name] = (data if text is None else text.encode("utf-8"), executable)
     missing = sorted(f"{file} (TODO {todo})" for todo, file in replace if file not in files)
     if missing:
         raise ReleaseError(f"{missing[0]}: no such file in the student edition to put a replacement into")

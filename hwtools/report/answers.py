@@ -1,7 +1,7 @@
 """Every answer the handout asks to report: ``compute_answers`` gathers them from the checked notebook values
 (a plain, JSON-ready dict), ``answers_markdown`` writes them as answers.md, one section per handout item,
-and the ``*_text`` functions print numbers in the formats the notebooks print them (the README's Report
-section; answers.html, answers.pdf and answers.tex are made from these).
+and the ``*_text`` functions print numbers in the formats the notebooks print them (docs/report.md;
+answers.html, answers.pdf and answers.tex are made from these).
 """
 
 from __future__ import annotations

@@ -8,8 +8,8 @@ change, then picks the other dropdown's coordinate and sees the two swap. In the
 notebook it also clicks the slider panel's "Show θ in the landscape" button and sees the explorer
 redrawn through the panel's θ. Each redraw is timed end to end as the browser sees it: from the
 change event (or click) until the new picture has loaded and the caption names the new axes or θ.
-The times are printed and written to ``test-artifacts/landscape_redraw.txt`` (the README's
-number); no wall-clock assertion.
+The times are printed and written to ``test-artifacts/landscape_redraw.txt`` (a row of
+benchmarks/RESULTS.md); no wall-clock assertion.
 
 JupyterLab and Chromium are started as in ``tests/browser/test_browser.py`` (``tests/browser/lab_under_test.py``),
 whose fixtures and notebook helpers this module uses.

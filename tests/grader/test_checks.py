@@ -8,7 +8,7 @@ student's preview and the instructor's grade.
 * The tolerances on the numbers that correct and wrong formulas give (no sandbox).
 * Every natural solution (``tests/grader/natural_solutions/``, CRLF copies saved as whole CRLF kits)
   earns every point; every wrong one (``instructor/wrong_solutions/``) keeps at most 30% of its
-  TODO and nothing outside it; the cases the handout leaves open get the README's verdict.
+  TODO and nothing outside it; the cases the handout leaves open get docs/grading.md's verdict.
 * Preview = grade: the student edition's ``python -m hwtools.grade`` (answer key) and the
   instructor's grade give every visible check the same verdict, and the same words for a first
   failure on a visible input.
@@ -419,7 +419,7 @@ def test_wrong_solution_keeps_at_most_30_percent_of_its_todo_and_costs_nothing_e
     assert earned | {todo: TODO_BY_ID[todo].auto} == full_points(), render(result)
 
 
-# The cases the handout leaves open, with the verdict the README's grading table gives and why.
+# The cases the handout leaves open, with the verdict docs/grading.md's table gives and why.
 VERDICTS = {
     "a sigmoid clipped at +-20 (off by up to 2.1e-9)": (
         "2.2.1", "values = 1.0 / (1.0 + np.exp(-np.clip(z, -20, 20)))", 1.5),

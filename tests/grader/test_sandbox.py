@@ -285,7 +285,7 @@ def test_a_child_that_holds_the_error_stream_does_not_hold_the_grader(mode, requ
         outcome = ran[0]
         assert outcome.seconds < CHILD_SECONDS / 2, "the grader waited for the child"
         assert "the child holds stderr" in outcome.stderr_tail
-        if mode != "plain":  # without a sandbox such a child outlives the run: the README says so
+        if mode != "plain":  # without a sandbox such a child outlives the run: docs/grading.md says so
             assert not holder(), "the child outlived the run"
     finally:
         for pid in holder():

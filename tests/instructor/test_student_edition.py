@@ -10,7 +10,7 @@
   with two lines naming it; stepping through every cell, each one that needs a TODO names it in
   its first line (the check cells too), the others run; ``pytest`` names a TODO first in every
   failure, in a few lines each;
-* its README says only what holds for a student, and how to hand in.
+* the commands its README gives start in it.
 
 Every command a student types runs with a Python that has the kit's packages but cannot import the
 instructor's tools (``day_one.student_python``). The reference solutions' path, editor leftovers
@@ -296,13 +296,19 @@ def test_day_one_pytest_names_a_todo_first_in_every_failure(python, day_one_kit)
     assert not long, f"failures longer than 3 lines on day one: {long}"
 
 
-def test_the_student_readme_says_what_holds_for_the_student(student_edition):
+def test_every_command_of_the_student_readme_starts_in_the_edition(python, student_edition):
+    """Its install command is the kit's quick start (which tests/browser/test_quick_start.py runs), and each
+    ``python -m`` command it gives starts in the edition with a student's Python. (What files it names:
+    tests/instructor/test_release.py.)"""
     readme = (student_edition / "README.md").read_text()
-    for false in ("One mistake costs points once", "grade_submission(", "reference_dir", "INSTRUCTOR ONLY"):
-        assert false not in readme, false
-    assert "--nbval-lax" in readme and "runs the visible checks only" in readme
-    assert "python -m hwtools.handin ANDREW_ID" in readme and "[andrew ID].zip" in readme
-    assert "jupyter lab --notebook-dir=. notebooks/p1_cartpole_finite_difference.ipynb" in readme
+    commands = [block.strip() for block in re.findall(r"```bash\n(.*?)```", readme, re.S)]
+    quick_start = re.findall(r"```bash\n(.*?)```", (KIT / "README.md").read_text().split("## Quick start", 1)[1], re.S)[0]
+    assert commands and commands[0] == quick_start.strip()
+    modules = sorted(set(re.findall(r"python -m ([\w.]+)", readme)))
+    assert {"hwtools.handin", "hwtools.grade", "pytest"} <= set(modules), modules
+    for module in modules:
+        result = run_in(python, student_edition, "-m", module, "--help", timeout=120)
+        assert result.returncode == 0 and "usage" in result.stdout.lower(), (module, result.stderr[-2000:])
 
 
 TODO_BLOCK = re.compile(r"^[ \t]*### BEGIN TODO (\d\.\d\.\d)", re.M)
