@@ -45,7 +45,7 @@ def day_one_lab(chromium, tmp_path_factory):
     its kernels import that edition (PYTHONPATH, set only while the server starts)."""
     from day_one import day_one_edition
 
-    kit = day_one_edition(tmp_path_factory.mktemp("day-one") / "kit")
+    kit = day_one_edition(tmp_path_factory.mktemp("day-one") / "kit", tmp_path_factory)
     with contextlib.ExitStack() as stack:
         with pytest.MonkeyPatch.context() as patch:
             patch.setenv("PYTHONPATH", str(kit))

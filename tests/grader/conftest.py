@@ -1,9 +1,13 @@
 """The grader's tests: after every test, reap the pool users' zombies this process adopted
-(``process_watch``: under the user fallback the grader's process is a subreaper)."""
+(``process_watch``: under the user fallback the grader's process is a subreaper). The student editions they
+grade are built with the test run's one answer key (``tests/instructor/editions.py``)."""
 
 import sys
+from pathlib import Path
 
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "instructor"))
 
 
 @pytest.fixture(autouse=True)

@@ -25,6 +25,7 @@ from hwtools import check_cell
 from hwtools.check_cell import CheckError, check_lines, grade_todo
 from hwtools.not_done import not_done_in_text, not_done_todo, untouched_todos
 from hwtools.notebook import assigned_names
+import editions
 
 KIT = Path(__file__).resolve().parents[2]
 WRONG = KIT / "instructor" / "wrong_solutions"
@@ -172,14 +173,13 @@ def wrong_solution(name):
 def wrong_edition(tmp_path_factory):
     """A student edition with every solution but two wrong ones (and its answer key)."""
     from hwtools.todos import TODO_BY_ID
-    from instructor.release import build_student_edition
 
     replace = {}
     for name in ("sigmoid_wrong_sign.txt", "forward_difference.txt"):
         todo, file, code = wrong_solution(name)
         replace[(todo, file)] = code
     kit = tmp_path_factory.mktemp("wrong") / "kit"
-    build_student_edition(KIT, kit, keep=frozenset(TODO_BY_ID), replace=replace)
+    editions.build(kit, tmp_path_factory, keep=frozenset(TODO_BY_ID), replace=replace)
     return kit
 
 

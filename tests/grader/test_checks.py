@@ -32,6 +32,7 @@ from hwtools.grade.episodes import Environments, Records
 from hwtools.grade.class_feedback import todo_markdown
 from hwtools.check_cell import check_lines
 from hwtools.grade.feedback import failure_words, render
+import editions
 from test_grading import full_points, parse_wrong_solution, points
 
 KIT = Path(__file__).resolve().parents[2]
@@ -450,12 +451,9 @@ def test_open_cases_get_the_readme_verdict(grader, layout, tmp_path, case):
 
 @pytest.fixture(scope="module")
 def student_edition(tmp_path_factory):
-    """The student edition as the instructor builds it (``python -m instructor.release student OUT``), with
-    its answer key, and the environment that runs its own ``hwtools``."""
-    out = tmp_path_factory.mktemp("edition") / "student"
-    built = subprocess.run([sys.executable, "-m", "instructor.release", "student", str(out)], cwd=KIT,
-                           capture_output=True, text=True, timeout=900)
-    assert built.returncode == 0, built.stdout + built.stderr
+    """The student edition with its answer key (the test run's one: ``editions.build``; the release's command
+    is run by tests/instructor/test_student_path.py), and the environment that runs its own ``hwtools``."""
+    out = editions.build(tmp_path_factory.mktemp("edition") / "student", tmp_path_factory)
     assert (out / "hwtools" / "grade" / "answer_key.json").is_file() and not (out / "instructor").exists()
     env = {**os.environ, "PYTHONPATH": str(out), "MPLBACKEND": "Agg"}
     where = subprocess.run([sys.executable, "-c", "import hwtools.grade; print(hwtools.grade.__file__)"], cwd=out,

@@ -27,10 +27,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks, classroom, kits, submissions, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks, classroom, kits, submissions
 from hwtools.grade.checks.verdicts import show
 from hwtools.grade.gradebook import gradebook_header
 from hwtools.grade.grader import read_answer_key
+import editions
 import test_grading as proof  # the grader's proof builds the wrong solutions and cheats
 
 KIT = Path(__file__).resolve().parents[2]
@@ -59,10 +60,8 @@ def layout():
 
 
 @pytest.fixture(scope="module")
-def answer_key(grader, tmp_path_factory):
-    path = tmp_path_factory.mktemp("key") / "answer_key.json"
-    write_answer_key(KIT, path, python=grader.sandbox.python)
-    return read_answer_key(path)
+def answer_key(tmp_path_factory):
+    return read_answer_key(editions.answer_key_file(tmp_path_factory))
 
 
 def zip_folder(folder, archive_path, prefix=""):

@@ -27,11 +27,12 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, blocks, kits, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, blocks, kits
 from hwtools.grade.grader import read_answer_key
 from hwtools.grade.gradescope_autograder import BUNDLE_MARKER
 
 import containers
+import editions
 import test_grading as proof  # the grader's proof builds the wrong solutions and cheats
 from process_watch import live_processes
 
@@ -261,9 +262,7 @@ def attack(name, layout, answer_key):
 
 @pytest.fixture(scope="module")
 def answer_key(tmp_path_factory):
-    key_path = tmp_path_factory.mktemp("key") / "answer_key.json"
-    write_answer_key(KIT, key_path)
-    return read_answer_key(key_path)
+    return read_answer_key(editions.answer_key_file(tmp_path_factory))
 
 
 def test_a_child_that_rewrites_results_json_after_the_grader_does_not_change_the_score(bundle, layout, tmp_path,
@@ -344,8 +343,7 @@ def test_a_wrong_solution_loses_its_own_todo_and_is_told_what_to_fix(bundle, lay
 
 def test_a_cheat_earns_nothing_and_the_visible_feedback_says_nothing_of_hidden_inputs(bundle, layout, tmp_path,
                                                                                      tmp_path_factory):
-    key_path = tmp_path_factory.mktemp("key") / "answer_key.json"
-    write_answer_key(KIT, key_path)
+    key_path = editions.answer_key_file(tmp_path_factory)
     cheat = proof.parse_cheat(proof.CHEATS / "hardcoded_visible.txt")
 
     def nested(folder):  # the kit one folder down, as a zip of the kit's folder unpacks

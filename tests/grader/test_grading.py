@@ -21,10 +21,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, kits, mistakes, write_answer_key
+from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, kits, mistakes
 from hwtools.grade.checks.verdicts import show
 from hwtools.grade.in_sandbox import served
 from hwtools.grade.feedback import render
+import editions
 from cheats import leak_search
 from process_watch import live_processes
 
@@ -101,13 +102,10 @@ def test_untouched_student_edition_earns_nothing(grader, layout, tmp_path):
             assert entry["status"] == "graded" and entry["first_failure"] is not None, entry
 
 
-def test_release_student_edition_earns_nothing_and_keeping_solutions_earns_all(grader, tmp_path):
-    release = pytest.importorskip("instructor.release")
-    if not hasattr(release, "build_student_edition"):
-        pytest.skip("instructor.release has no build_student_edition")
-    release.build_student_edition(KIT, tmp_path / "student")
+def test_release_student_edition_earns_nothing_and_keeping_solutions_earns_all(grader, tmp_path, tmp_path_factory):
+    editions.build(tmp_path / "student", tmp_path_factory)
     assert grader.grade(tmp_path / "student")["total"]["auto_earned"] == 0
-    release.build_student_edition(KIT, tmp_path / "kept", keep=frozenset(TODO_BY_ID))
+    editions.build(tmp_path / "kept", tmp_path_factory, keep=frozenset(TODO_BY_ID))
     kept = grader.grade(tmp_path / "kept")
     assert points(kept) == full_points(), shortfall(kept)
 
@@ -361,12 +359,10 @@ def hardcoded_body(todo, key):
 
 
 @pytest.fixture(scope="module")
-def answer_key(grader, tmp_path_factory):
-    path = tmp_path_factory.mktemp("key") / "answer_key.json"
-    write_answer_key(KIT, path, python=grader.sandbox.python)
+def answer_key(tmp_path_factory):
     from hwtools.grade.grader import read_answer_key
 
-    return read_answer_key(path)
+    return read_answer_key(editions.answer_key_file(tmp_path_factory))
 
 
 def build_cheat(layout, cheat, folder, answer_key):
@@ -558,15 +554,14 @@ def test_a_block_that_does_not_parse_costs_only_its_todo(grader, layout, tmp_pat
     assert entry["status"] == "not graded" and "does not parse" in entry["notes"][0]
 
 
-def test_answer_key_grades_the_visible_checks_of_a_student_edition(answer_key, layout, tmp_path):
+def test_answer_key_grades_the_visible_checks_of_a_student_edition(answer_key, layout, tmp_path, tmp_path_factory):
     key_file = tmp_path / "key.json"
     from hwtools.grade.answer_key import ANSWER_KEY_VERSION
 
     key_file.write_text(json.dumps({"version": ANSWER_KEY_VERSION, "visible_cases": "stale", "expected": {}}))
     with pytest.raises(Exception, match="other visible checks"):
         Grader(None, answer_key=key_file)
-    good = tmp_path / "good.json"
-    write_answer_key(KIT, good)
+    good = editions.answer_key_file(tmp_path_factory)  # write_answer_key(KIT, ...), once per test run
     text = good.read_text()
     assert "/h0" not in text  # visible inputs only
     student = Grader(None, answer_key=good, time_limit=TIME_LIMIT)
@@ -606,11 +601,11 @@ def test_a_kit_of_some_files_holds_the_kit_modules_they_import(tmp_path):
     assert files["hwlib/__init__.py"] == ""  # a package's own __init__ is left out, as before
 
 
-def test_the_preview_of_a_kit_without_a_todo_s_markers_says_it_is_not_graded(answer_key, layout, tmp_path):
+def test_the_preview_of_a_kit_without_a_todo_s_markers_says_it_is_not_graded(answer_key, layout, tmp_path,
+                                                                             tmp_path_factory):
     """The student edition's preview reads the student's own kit: a TODO whose markers were deleted
     has no block there, and is "not graded" with the reason (not a KeyError); the others are graded."""
-    key = tmp_path / "key.json"
-    write_answer_key(KIT, key)
+    key = editions.answer_key_file(tmp_path_factory)
     kits.write_submission(layout, tmp_path / "kit", others="reference")
     logreg = tmp_path / "kit" / "hwlib" / "logreg.py"
     logreg.write_text("\n".join(line for line in logreg.read_text().split("\n")

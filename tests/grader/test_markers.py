@@ -26,6 +26,7 @@ import pytest
 from hwtools import markers
 from hwtools.grade import AUTO_POINTS, TODO_BY_ID, blocks, kits
 from instructor.release import ANSWER_KEY, build_student_edition, kit_files, transform_notebook
+import editions
 
 KIT = Path(__file__).resolve().parents[2]
 AUTO_TODOS = sorted(todo.id for todo in TODO_BY_ID.values() if todo.auto)
@@ -277,11 +278,11 @@ def test_the_kit_saved_with_other_line_ends_scores_every_point(how, tmp_path):
         assert not any("differ from the kit's" in note for note in result["notes"]), result["notes"]
 
 
-def test_the_student_preview_gives_a_crlf_copy_the_verdicts_of_the_lf_one(tmp_path):
+def test_the_student_preview_gives_a_crlf_copy_the_verdicts_of_the_lf_one(tmp_path, tmp_path_factory):
     """In the student edition (no reference: the answer key), a kit with every TODO done earns the
     same verdict per check whether its files end lines with LF or CRLF."""
     edition = tmp_path / "edition"
-    build_student_edition(KIT, edition, keep=frozenset(TODO_BY_ID))
+    editions.build(edition, tmp_path_factory, keep=frozenset(TODO_BY_ID))
     assert (edition / ANSWER_KEY).is_file()
     crlf = saved_copy(edition, tmp_path / "crlf", "crlf", prefix="")
     (crlf / ANSWER_KEY).write_bytes((edition / ANSWER_KEY).read_bytes())  # the key is data, not a file a student saves

@@ -1,6 +1,6 @@
 """The student edition as a student opens it on day one, for the tests that look at it.
 
-``day_one_edition(out)`` builds the student edition (``instructor.release``) and makes sure every
+``day_one_edition(out, tmp_path_factory)`` builds the student edition (``instructor.release``) and makes sure every
 untouched TODO raises ``TodoNotDone`` when it runs. The release tool is to write such stubs
 itself (``raise TodoNotDone("1.2.1")``, ``hwlib/machinery/todos.py``); where it still writes ``pass`` or a
 bare ``raise NotImplementedError()``, this module writes those stubs in the built copy, and a
@@ -87,11 +87,12 @@ def raising_stubs(kit):
     return changed
 
 
-def day_one_edition(out, **options):
-    """The untouched student edition in ``out`` (built, then ``raising_stubs``)."""
-    from instructor.release import build_student_edition  # noqa: PLC0415 - the instructor's tool
+def day_one_edition(out, tmp_path_factory, **options):
+    """The untouched student edition in ``out`` (built with the test run's answer key, ``editions.build``,
+    then ``raising_stubs``)."""
+    from editions import build  # noqa: PLC0415
 
-    build_student_edition(KIT, out, **options)
+    build(out, tmp_path_factory, **options)
     raising_stubs(out)
     return Path(out)
 

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import editions
 import hwlib
 from hwlib.machinery.episodes import run_episodes
 from hwlib.machinery.todos import TODO_BY_ID
@@ -75,9 +76,7 @@ def student_texts(root):
 
 @pytest.fixture(scope="module")
 def student_edition(tmp_path_factory):
-    out = tmp_path_factory.mktemp("student") / "kit"
-    build_student_edition(KIT, out)
-    return out
+    return editions.build(tmp_path_factory.mktemp("student") / "kit", tmp_path_factory)
 
 
 def test_no_solution_line_appears_in_the_student_edition(student_edition):
@@ -116,7 +115,7 @@ def test_no_balancing_parameters_appear_in_the_student_edition(student_edition):
 
 def test_the_leak_search_finds_a_leak(tmp_path):
     """The checks above can fail: a solution line copied into a given file is found."""
-    build_student_edition(KIT, tmp_path / "kit")
+    build_student_edition(KIT, tmp_path / "kit", answer_key=False)  # the key holds no line of a solution
     todo, name, body = next(block for block in solution_blocks() if block[0] == "1.2.1")
     line = next(filter(distinctive, body)).strip()
     readme = tmp_path / "kit" / "README.md"
@@ -164,9 +163,7 @@ def natural_kit(tmp_path_factory):
     for path in natural_solutions():
         chosen.setdefault(path.name.split("_")[0], path)
     replace = {(todo, block_file(todo)): path.read_text() for todo, path in chosen.items()}
-    kit = tmp_path_factory.mktemp("natural") / "kit"
-    build_student_edition(KIT, kit, replace=replace)
-    return kit
+    return editions.build(tmp_path_factory.mktemp("natural") / "kit", tmp_path_factory, replace=replace)
 
 
 def test_a_student_edition_with_natural_solutions_passes_its_own_unit_tests(python, natural_kit):
@@ -234,7 +231,7 @@ NOT_DONE = re.compile(r"^TODO (\d+\.\d+\.\d+) is not done yet: ")
 def day_one_kit(tmp_path_factory):
     from day_one import day_one_edition
 
-    return day_one_edition(tmp_path_factory.mktemp("day-one") / "kit")
+    return day_one_edition(tmp_path_factory.mktemp("day-one") / "kit", tmp_path_factory)
 
 
 @pytest.mark.parametrize("notebook", [P1, P2])
