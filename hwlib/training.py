@@ -214,6 +214,11 @@ class _Watch:
             return ("Most episodes were played step by step with your CartPoleLinearPolicy.__call__, because it does "
                     "not give the actions of equation (1) (TODO 1.1.1); fix it, or pass max_minutes=None to wait.")
         evaluations = sum(run.evaluations for run in session.runs) / max(len(session.runs), 1)
+        if session.not_replayed is not None or not session.episodes_played:
+            why = f" ({session.not_replayed})" if session.not_replayed else ""
+            return (f"Your eval_params plays its episodes in an environment of its own in a way the kit cannot replay{why}, "
+                    "so every step runs in Python; play each with run_policy(policy, seed=seed + k), or pass "
+                    "max_minutes=None to wait.")
         if session.rounds > 3 * max(evaluations, 1):
             return ("Your code asks for its episodes one at a time in a way the kit cannot foresee (eval_params draws "
                     "different seeds each time it runs?); pass max_minutes=None to wait.")
