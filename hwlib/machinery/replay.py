@@ -343,7 +343,7 @@ class Replaying:
             if run is None or run.session is not self:
                 return function(*args, **kwargs)
             call = _call_key(signature, params_argument, args, kwargs) if counted and self.batched else None
-            code = getattr(function, "__code__", None)
+            code = getattr(function, "__code__", None)  # the code that may make a KitEnv, and its params
             making, run.making = run.making, None if call is None or call[1] is None or code is None else (code, call[1])
             try:
                 return self._replay_call(run, call, function, args, kwargs, counted)
@@ -437,7 +437,7 @@ class Replaying:
             plain = function(*args, **kwargs)
         finally:
             run.making = making
-        if run.longest < math.inf and _same(value, plain):
+        if run.longest < math.inf and np.array_equal(value, plain):
             self.checked_up_to = max(self.checked_up_to, run.longest)
         elif self.not_replayed is None:
             self.not_replayed = "its number changes when the kit plays each episode at once: does it count steps?"
@@ -473,13 +473,6 @@ class Replaying:
                 into.setdefault(key, (None, params))  # the policy is made from the key if it must play step by step
         run.memory.foresaw = True
         return True
-
-
-def _same(value, plain):
-    try:
-        return type(value) is type(plain) and bool(value == plain)
-    except Exception:  # noqa: BLE001 - e.g. arrays: not the same for the check
-        return False
 
 
 def _learn(memory, call, asked):
