@@ -13,6 +13,7 @@ so the numbers are those your code gives one episode at a time (``batched=False`
 | ``scalar_finite_diff``  | the same, so the 8 evaluations of one gradient are played in one batch |
 | the sweep's runs        | side by side, one at a time in a fixed order; what they all wait for is played together |
 | episodes without a seed | start where the next ``reset()`` of the run's own environment, seeded once with the run's seed, starts them, so a run gives the same numbers every time, batched or not |
+| ``eval_params`` with its own ``gym.make("CartPole-v1")`` | the environment is the kit's: ``reset`` as gymnasium's, the first ``step`` ends the episode with its whole reward, played in the batches; a call with a longer episode than any checked so far runs again on gymnasium's environment; if the numbers differ, or the code uses the environment otherwise, the kit plays on gymnasium's from then on (slow: the time limit says why) |
 | a policy that is not equation (1) | played step by step with your ``__call__``: slow; if that would take more than ``max_minutes``, the kit says so, with its estimate, before it starts |
 """
 

@@ -587,16 +587,41 @@ def eval_always_left(params, num_rollouts=20, seed=0):
     return total / num_rollouts
 
 
-@pytest.mark.parametrize("student", [eval_counting_steps, eval_capped, eval_always_left])
+KEPT = {}
+
+
+def eval_env_kept_between_calls(params, num_rollouts=20, seed=0):
+    """Correct: one environment made at the first call and kept for the next ones."""
+    import gymnasium as gym
+
+    if "env" not in KEPT:
+        KEPT["env"] = gym.make("CartPole-v1")
+    env = KEPT["env"]
+    policy, total = CartPoleLinearPolicy(params), 0.0
+    for k in range(num_rollouts):
+        obs, _ = env.reset(seed=seed + k)
+        done = False
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(policy(obs))
+            total += reward
+            done = terminated or truncated
+    return total / num_rollouts
+
+
+@pytest.mark.parametrize("student", [eval_counting_steps, eval_capped, eval_always_left, eval_env_kept_between_calls])
 def test_own_environment_code_the_kit_cannot_replay_gets_the_plain_loops_numbers(monkeypatch, student):
     monkeypatch.setattr(policy_search, "eval_params", student)
+    KEPT.clear()
     session, replaying = session_replaying()
     with replaying:
         [run] = session.run([lambda: policy_search.train_cartpole_policy(4, 5, 0.004, seed=3)])
+    KEPT.clear()
     plain = policy_search.train_cartpole_policy(4, 5, 0.004, seed=3)
     np.testing.assert_array_equal(run.rewards, plain.rewards)
     np.testing.assert_array_equal(run.params_history, plain.params_history)
     assert session.not_replayed is not None  # the kit noticed, and made no more of its environments
+    if student is eval_env_kept_between_calls:  # the first call's environment replays no other call's episodes
+        assert "keeps its environment" in session.not_replayed
 
 
 def test_a_sweep_whose_own_environment_cannot_be_replayed_is_stopped_with_the_reason(monkeypatch):

@@ -21,6 +21,8 @@ code looks them up) and puts yours back afterwards. Your files are not changed.
 3. **Episodes without a seed** (``run_policy(policy)``) start where the next ``reset()`` of the
    run's own environment (seeded once with the training run's seed) starts them, so they too are
    the same in the batched run and in the plain loop (``batched=False``), and from one run to the next.
+   An ``eval_params`` with its own ``gym.make("CartPole-v1")`` loop plays in a kit environment
+   whose episodes are played in the same batches (``replay.KitEnv``).
 4. **Checked, not trusted**: a parameter vector's episodes are played with the kit's copy of
    equation (1) only after ``episodes.agrees_with_equation_one``; others are played step by step
    with the policy's own ``__call__``. Results are kept by (policy class, parameters, seed), and

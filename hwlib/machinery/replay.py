@@ -29,7 +29,9 @@ gets the plain loop's number without stepping 500 times. Checked, not trusted: a
 anything else with it (another action than the policy's, a step after the end, a reset never
 seeded), fails, or meets an episode longer than any checked so far runs again on gymnasium's own
 environment, and that plain pass's number is the call's; where the two differ, the session makes
-no more kit environments (and its time limit says why it is slow).
+no more kit environments (and its time limit says why it is slow). A kit environment used after
+the pass of ``eval_params`` that made it (kept from one call to the next) turns into gymnasium's
+own, seeded where it was.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ import sys
 import gymnasium
 import numpy as np
 
-from hwlib.cartpole import ENV_ID, CartPoleLinearPolicy, make_env
+from hwlib.cartpole import ENV_ID, CartPoleLinearPolicy, make_env, run_policy
 from hwlib.machinery import episodes
 
 PLACEHOLDER_REWARD = 0.0  # what an episode not yet played gives while a call is being recorded
@@ -209,13 +211,37 @@ class KitEnv:
         self._session, self._run = session, run
         self._policy = policy_of(CartPoleLinearPolicy, params)
         self._start = self._obs = self._seed = self._generator = self._real = None
+        self._pass = (run.making, run.recording)  # it replays only in the pass of eval_params that made it
+        self._plain = False  # from now on gymnasium's own environment
         run.longest = max(run.longest, 0)
 
-    def _refuse(self, reason):
-        self._run.longest = math.inf
+    def _live(self):
+        """Whether it replays now; if it is used in another pass (code that keeps its environment
+        from one call to the next), it becomes gymnasium's own environment."""
+        making, recording = self._pass
+        if not self._plain and (making is not self._run.making or recording != self._run.recording):
+            self._to_plain("it keeps its environment from one call of eval_params to the next")
+        return not self._plain
+
+    def _to_plain(self, reason):
+        self._plain = True
         if self._session.not_replayed is None:
             self._session.not_replayed = reason
+
+    def _refuse(self, reason):
+        """Used otherwise than the kit replays: this pass runs again plainly (``Replaying._checked``)."""
+        self._run.longest = math.inf
+        self._to_plain(reason)
         raise NotReplayable(reason)
+
+    def _gymnasium(self):
+        """Gymnasium's own environment, seeded where this one was."""
+        if self._real is None:
+            self._real = make_env()
+            if self._seed is not None:
+                self._real.reset(seed=self._seed)
+                self._real.unwrapped.np_random = self._generator or self._real.unwrapped.np_random
+        return self._real
 
     def _begin(self, seed, options=None):
         """Start an episode where gymnasium's reset(seed=seed) would: the episode's seed, or its start state (bytes)."""
@@ -239,10 +265,14 @@ class KitEnv:
         return self._start
 
     def reset(self, *, seed=None, options=None):
+        if not self._live():
+            return self._gymnasium().reset(seed=seed, options=options)
         self._begin(seed, options)
         return self._obs.copy(), {}
 
     def step(self, action):
+        if not self._live():
+            return self._gymnasium().step(action)
         start, self._start = self._start, None
         if start is None:
             self._refuse("it steps an episode that has ended")
@@ -255,6 +285,8 @@ class KitEnv:
 
     def play(self, policy, seed):
         """``run_policy(policy, seed, env=self)``: the kit's own loop, so no check is needed."""
+        if not self._live():
+            return run_policy(policy, seed, self)
         return self._session._route(self._run, policy, self._begin(seed))
 
     def close(self):
@@ -268,11 +300,11 @@ class KitEnv:
         return False
 
     def __getattr__(self, name):
-        if name not in KitEnv._SPACES:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        if name not in KitEnv._SPACES and self._live():
             self._refuse(f"it uses env.{name}")
-        if self._real is None:
-            self._real = make_env()
-        return getattr(self._real, name)
+        return getattr(self._gymnasium(), name)
 
 
 class Replaying:
