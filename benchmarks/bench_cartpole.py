@@ -19,8 +19,15 @@ next ``reset()`` of the run's own environment (seeded once with the run's seed) 
 plain loop as in the batched sweep. The seeding styles train on different episodes, so their
 sweeps play different amounts of physics: compare each style's ratio to its own loop.
 
+Three more styles play their episodes in an environment of their own (``gym.make("CartPole-v1")``
+with ``reset(seed=seed + k)`` for each episode; one environment seeded at its first reset, then
+``reset()``; one ``make_env()`` passed to ``run_policy``): the kit gives their code its own
+environment (``hwlib/machinery/replay.py``, ``KitEnv``), and each line also gives the sweep's time
+as a multiple of the kit's own ``eval_params`` sweep in the same run.
+
 Targets (issues 18, 23): the learning-rate sweep <= 20 s on a quiet 2-core box and >= 20x the one-by-one loop for
-every style; a policy that is not equation (1) is told how long it would take before the sweep
+every style, and for an eval_params with an environment of its own <= 2x the sweep of the kit's
+eval_params (issue 25.1); a policy that is not equation (1) is told how long it would take before the sweep
 starts; Kernel -> Interrupt stops the sweep within a second, leaving no thread; convergence with
 the defaults on >= 99% of >= 200 seeds the kit was never tuned on; Run All of p1 <= 30 s.
 """
@@ -38,6 +45,7 @@ import threading
 import time
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 
 from hwlib import CartPoleLinearPolicy, policy_search, settings
@@ -84,11 +92,53 @@ def eval_unseeded(params, num_rollouts=settings.NUM_ROLLOUTS, seed=0):
     return float(np.mean([run_policy(policy) for _ in range(num_rollouts)]))
 
 
+# Its own environment (tests/grader/natural_solutions/1.3.1_own_env_loop.py, _own_env_seeded_once.py,
+# _one_env_reused.py).
+
+def eval_own_env(params, num_rollouts=settings.NUM_ROLLOUTS, seed=0):
+    policy, env, total = CartPoleLinearPolicy(params), gym.make("CartPole-v1"), 0.0
+    for rollout in range(num_rollouts):
+        obs, _ = env.reset(seed=seed + rollout)
+        done = False
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(policy(obs))
+            total += reward
+            done = terminated or truncated
+    env.close()
+    return total / num_rollouts
+
+
+def eval_own_env_seeded_once(params, num_rollouts=settings.NUM_ROLLOUTS, seed=0):
+    policy, env, rewards = CartPoleLinearPolicy(params), gym.make("CartPole-v1"), []
+    env.reset(seed=seed)
+    for _ in range(num_rollouts):
+        obs, _ = env.reset()
+        total, done = 0.0, False
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(policy(obs))
+            total += reward
+            done = terminated or truncated
+        rewards.append(total)
+    return float(np.mean(rewards))
+
+
+def eval_one_env_reused(params, num_rollouts=settings.NUM_ROLLOUTS, seed=0):
+    from hwlib.cartpole import make_env
+
+    policy, env = CartPoleLinearPolicy(params), make_env()
+    rewards = [policy_search.run_policy(policy, seed=seed, env=env)]
+    rewards += [policy_search.run_policy(policy, env=env) for _ in range(1, num_rollouts)]
+    return sum(rewards) / num_rollouts
+
+
 STYLES = {
     "the kit's eval_params": None,
     "episode k from seed + k": eval_seed_plus_k,
     "seeds from default_rng(seed)": eval_generator,
     "no seeds (unseeded)": eval_unseeded,
+    "its own gym.make env, reset(seed=seed + k)": eval_own_env,
+    "its own env seeded once, then reset()": eval_own_env_seeded_once,
+    "one make_env() passed to run_policy": eval_one_env_reused,
 }
 
 
@@ -175,17 +225,18 @@ def bench_mirrored_policy():
         CartPoleLinearPolicy.__call__ = original
 
 
-def bench_interrupt(delays=(1.0, 4.0, 8.0)):
+def bench_interrupt(function=None, style="the kit's eval_params", delays=(1.0, 4.0, 8.0)):
     # A background job of a shell ignores SIGINT, and interrupt_main() then does nothing: the
     # kernel's own handler, Python's default, is put in place for the measurement.
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        return _bench_interrupt(delays)
+        with using(function):
+            return _bench_interrupt(style, delays)
     finally:
         signal.signal(signal.SIGINT, previous)
 
 
-def _bench_interrupt(delays):
+def _bench_interrupt(style, delays):
     stops = []
     for delay in delays:
         fired = []
@@ -198,7 +249,7 @@ def _bench_interrupt(delays):
         finally:
             timer.cancel()
     left = [thread.name for thread in threading.enumerate() if thread.name.startswith("hwlib-run-")]
-    print(f"Kernel -> Interrupt {', '.join(f'{d:.0f}' for d in delays)} s into the sweep: stopped after "
+    print(f"Kernel -> Interrupt {', '.join(f'{d:.0f}' for d in delays)} s into the sweep ({style}): stopped after "
           f"{', '.join(f'{s * 1000:.0f} ms' for s in stops)} (target < 1 s); threads left: {len(left)}")
     return len(stops) == len(delays) and not left and max(stops) < 1.0
 
@@ -271,12 +322,17 @@ def main(argv=None):
     if "sweep" not in args.skip:
         print(f"learning-rate sweep ({len(settings.SWEEP_LEARNING_RATES)} rates x {settings.SWEEP_NUM_SEEDS} seeds x "
               f"{settings.NUM_TRAINING_ITERATIONS} iterations), per seeding style of eval_params:")
+        kit_seconds = None
         for style, function in STYLES.items():
-            ok &= bench_sweep(style, function, 1 if args.quick else 3)[2]
+            seconds, _, same = bench_sweep(style, function, 1 if args.quick else 3)
+            ok &= same
+            kit_seconds = seconds if function is None else kit_seconds
+            print(f"    {seconds / kit_seconds:.2f}x the sweep of the kit's eval_params")
     if "mirrored" not in args.skip:
         ok &= bench_mirrored_policy()
     if "interrupt" not in args.skip:
         ok &= bench_interrupt()
+        ok &= bench_interrupt(eval_own_env_seeded_once, "its own env seeded once")
     if "convergence" not in args.skip:
         bench_convergence(40 if args.quick else 300)
     if "notebook" not in args.skip and not args.quick:

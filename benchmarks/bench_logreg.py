@@ -105,7 +105,7 @@ from hwlib import accuracy, load_food_cutting, settings, train_test_split  # noq
 from hwlib import logreg  # noqa: E402
 
 KIT = Path(__file__).resolve().parent.parent
-NATURAL = KIT / "tests" / "natural_solutions"
+NATURAL = KIT / "tests" / "grader" / "natural_solutions"
 REPEATS = 3
 ALLOWED_GAP = 0.02
 

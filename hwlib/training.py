@@ -13,6 +13,7 @@ so the numbers are those your code gives one episode at a time (``batched=False`
 | ``scalar_finite_diff``  | the same, so the 8 evaluations of one gradient are played in one batch |
 | the sweep's runs        | side by side, one at a time in a fixed order; what they all wait for is played together |
 | episodes without a seed | start where the next ``reset()`` of the run's own environment, seeded once with the run's seed, starts them, so a run gives the same numbers every time, batched or not |
+| ``eval_params`` with its own ``gym.make("CartPole-v1")`` | the environment is the kit's: ``reset`` as gymnasium's, the first ``step`` ends the episode with its whole reward, played in the batches; a call with a longer episode than any checked so far runs again on gymnasium's environment; if the numbers differ, or the code uses the environment otherwise, the kit plays on gymnasium's from then on (slow: the time limit says why) |
 | a policy that is not equation (1) | played step by step with your ``__call__``: slow; if that would take more than ``max_minutes``, the kit says so, with its estimate, before it starts |
 """
 
@@ -214,6 +215,11 @@ class _Watch:
             return ("Most episodes were played step by step with your CartPoleLinearPolicy.__call__, because it does "
                     "not give the actions of equation (1) (TODO 1.1.1); fix it, or pass max_minutes=None to wait.")
         evaluations = sum(run.evaluations for run in session.runs) / max(len(session.runs), 1)
+        if session.not_replayed is not None or not session.episodes_played:
+            why = f" ({session.not_replayed})" if session.not_replayed else ""
+            return (f"Your eval_params plays its episodes in an environment of its own in a way the kit cannot replay{why}, "
+                    "so every step runs in Python; play each with run_policy(policy, seed=seed + k), or pass "
+                    "max_minutes=None to wait.")
         if session.rounds > 3 * max(evaluations, 1):
             return ("Your code asks for its episodes one at a time in a way the kit cannot foresee (eval_params draws "
                     "different seeds each time it runs?); pass max_minutes=None to wait.")

@@ -21,6 +21,8 @@ code looks them up) and puts yours back afterwards. Your files are not changed.
 3. **Episodes without a seed** (``run_policy(policy)``) start where the next ``reset()`` of the
    run's own environment (seeded once with the training run's seed) starts them, so they too are
    the same in the batched run and in the plain loop (``batched=False``), and from one run to the next.
+   An ``eval_params`` with its own ``gym.make("CartPole-v1")`` loop plays in a kit environment
+   whose episodes are played in the same batches (``replay.KitEnv``).
 4. **Checked, not trusted**: a parameter vector's episodes are played with the kit's copy of
    equation (1) only after ``episodes.agrees_with_equation_one``; others are played step by step
    with the policy's own ``__call__``. Results are kept by (policy class, parameters, seed), and
@@ -43,8 +45,8 @@ import numpy as np
 
 from hwlib.cartpole import NUM_OBSERVATIONS, make_env
 from hwlib.machinery import episodes
-from hwlib.machinery.replay import (CLASSES, PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, OwnEnv, Redo, Replaying,
-                                    RunMemory, class_code, policy_of)
+from hwlib.machinery.replay import (CLASSES, PLACEHOLDER_REWARD, Cancelled, GiveUpRecording, KitEnv, OwnEnv, Redo,
+                                    Replaying, RunMemory, class_code, policy_of)
 from hwlib.machinery.validation import check_policy, check_seed
 
 __all__ = ["EVALUATIONS_PER_ITERATION", "PLACEHOLDER_REWARD", "Cancelled", "Session", "current_run"]
@@ -78,6 +80,8 @@ class _Run:
         self.recording = False
         self.replaying = 0  # depth of replayed calls running for real
         self.recorded = {}  # key -> (policy, params), in the order asked for
+        self.making = None  # (code, params) of the eval_params call whose code may make a KitEnv now
+        self.longest = -1  # the longest episode a KitEnv served in the real pass running now (-1: no KitEnv)
         self.memory = RunMemory()  # what the run has shown about the seeds it asks for
         self.evaluations = 0  # real (second) passes of the first replayed function
         self.state = "ready"  # ready | running | waiting | done
@@ -127,8 +131,10 @@ class Session(Replaying):
         self.cancelled = False
         self.runs = []
         self.rounds = self.episodes_played = self.step_by_step = self.asked = 0
-        self._env = None
+        self._env = self._drawing = None
         self.started = None
+        self.not_replayed = None  # why the session makes no more KitEnvs (replay.py), or None
+        self.checked_up_to = 0  # KitEnv episodes up to this length were checked against a plain pass
 
     # --- running the tasks --------------------------------------------------------------------
 
@@ -205,8 +211,11 @@ class Session(Replaying):
         run.state = "running"
         self._back.clear()
         run.go.set()
+        waits = 0
         while not self._back.wait(0.05):  # a timeout, so that Kernel → Interrupt is seen at once
-            pass
+            waits += 1
+            if waits % 20 == 0 and self.on_round is not None:  # busy for a second: progress and time limit
+                self.on_round(self)
 
     def _work(self, run):
         _current.run = run
@@ -257,9 +266,11 @@ class Session(Replaying):
         @functools.wraps(run_policy)
         def routed(policy, seed=None, env=None):
             run = _current.run
-            if run is None or run.session is not self or env is not None:
+            if run is None or run.session is not self or (env is not None and type(env) is not KitEnv):
                 return run_policy(policy, seed, env)
             check_policy(policy)
+            if env is not None:
+                return env.play(policy, seed)
             return self._route(run, policy, None if seed is None else check_seed(seed, "seed"))
 
         return routed

@@ -48,6 +48,12 @@ def start_states(seeds):
     return np.array([_START_STATES[int(seed)] for seed in seeds]).reshape(len(seeds), NUM_OBSERVATIONS)
 
 
+def start_state(seed):
+    """``start_states`` of one seed (an int), float64 (4,)."""
+    state = _START_STATES.get(seed)
+    return start_states([seed])[0] if state is None else state
+
+
 def starts_of(seeds_or_states):
     """The start states (float64 (K, 4)) of episodes named by a seed (int) or by a start state (its
     float64 bytes: an unseeded episode of a kit run, see ``batch.py``)."""
@@ -215,7 +221,7 @@ def first_disagreement(policy_class):
             return params, states[0], error, int(batch_actions(params[None, :], states[:1])[0])
         expected = batch_actions(np.repeat(params[None, :], len(states), axis=0), states)
         for state, action, want in zip(states, actions, expected):
-            if not _is_action(action) or int(action) != want:
+            if not is_action(action) or int(action) != want:
                 return params, state, action, int(want)
     return None
 
@@ -247,10 +253,10 @@ def _agrees(policy, params, states):
         raise
     except Exception:  # noqa: BLE001 - the step-by-step play shows the policy's own error
         return False
-    return all(_is_action(action) for action in actual) and [int(action) for action in actual] == expected.tolist()
+    return all(is_action(action) for action in actual) and [int(action) for action in actual] == expected.tolist()
 
 
-def _is_action(action):
+def is_action(action):
     # Python ints (bools included) and numpy integers are what env.step accepts.
     return isinstance(action, (int, np.integer))
 

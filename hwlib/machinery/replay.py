@@ -20,6 +20,18 @@ environment). That halves the Python time of the usual ways to write it (episode
 ``seed + k``, seeds from ``np.random.default_rng(seed)``, no seeds). If a call then asks for
 anything else, its outermost call starts again, recorded, and the run is never foreseen again;
 the foreseen episodes it did not ask for are played that once.
+
+Your own environment: ``gym.make("CartPole-v1")`` (or ``make_env()``) in the code of
+``eval_params`` gives, in a kit run, a ``KitEnv``. Its ``reset`` starts where gymnasium's would; its
+first ``step`` ends the episode with the whole episode's reward, played in the batches for
+``CartPoleLinearPolicy(params)``: code that adds up the rewards until ``terminated or truncated``
+gets the plain loop's number without stepping 500 times. Checked, not trusted: a call that does
+anything else with it (another action than the policy's, a step after the end, a reset never
+seeded), fails, or meets an episode longer than any checked so far runs again on gymnasium's own
+environment, and that plain pass's number is the call's; where the two differ, the session makes
+no more kit environments (and its time limit says why it is slow). A kit environment used after
+the pass of ``eval_params`` that made it (kept from one call to the next) turns into gymnasium's
+own, seeded where it was.
 """
 
 from __future__ import annotations
@@ -28,10 +40,14 @@ import collections
 import contextlib
 import functools
 import inspect
+import math
+import sys
 
+import gymnasium
 import numpy as np
 
-from hwlib.cartpole import CartPoleLinearPolicy, make_env
+from hwlib.cartpole import ENV_ID, CartPoleLinearPolicy, make_env, run_policy
+from hwlib.machinery import episodes
 
 PLACEHOLDER_REWARD = 0.0  # what an episode not yet played gives while a call is being recorded
 UNSEEDED = "unseeded"  # a call that asks for its episodes without seeds: (UNSEEDED, how many)
@@ -50,6 +66,10 @@ class Redo(BaseException):
     """A foreseen call asked for an episode that was not foreseen: its outermost call starts again."""
 
 
+class NotReplayable(BaseException):
+    """The code of eval_params used a ``KitEnv`` in a way the kit does not replay: the call runs plainly."""
+
+
 class RunMemory:
     """What a run has learnt about the seeds its ``eval_params`` asks for."""
 
@@ -59,6 +79,7 @@ class RunMemory:
         self.confirmations = 0
         self.refuted = False
         self.foresaw = False  # the outermost call running now was foreseen, in part or whole
+        self.kit_starts = False  # the call being watched drew start states in a KitEnv (fixed by its arguments)
 
     def foreseeable(self):
         return not self.refuted and self.confirmations >= _CONFIRMATIONS
@@ -180,6 +201,112 @@ class OwnEnv:
             self.env = None
 
 
+class KitEnv:
+    """What ``gym.make("CartPole-v1")`` gives the code of ``eval_params`` (a call with ``params``) in a
+    batched kit run: see the module's docstring. The real pass checks it (``Replaying._checked``)."""
+
+    _SPACES = ("action_space", "observation_space", "spec", "metadata", "render_mode", "reward_range")
+
+    def __init__(self, session, run, params):
+        self._session, self._run = session, run
+        self._policy = policy_of(CartPoleLinearPolicy, params)
+        self._start = self._obs = self._seed = self._generator = self._real = None
+        self._pass = (run.making, run.recording)  # it replays only in the pass of eval_params that made it
+        self._plain = False  # from now on gymnasium's own environment
+        run.longest = max(run.longest, 0)
+
+    def _live(self):
+        """Whether it replays now; if it is used in another pass (code that keeps its environment
+        from one call to the next), it becomes gymnasium's own environment."""
+        making, recording = self._pass
+        if not self._plain and (making is not self._run.making or recording != self._run.recording):
+            self._to_plain("it keeps its environment from one call of eval_params to the next")
+        return not self._plain
+
+    def _to_plain(self, reason):
+        self._plain = True
+        if self._session.not_replayed is None:
+            self._session.not_replayed = reason
+
+    def _refuse(self, reason):
+        """Used otherwise than the kit replays: this pass runs again plainly (``Replaying._checked``)."""
+        self._run.longest = math.inf
+        self._to_plain(reason)
+        raise NotReplayable(reason)
+
+    def _gymnasium(self):
+        """Gymnasium's own environment, seeded where this one was."""
+        if self._real is None:
+            self._real = make_env()
+            if self._seed is not None:
+                self._real.reset(seed=self._seed)
+                self._real.unwrapped.np_random = self._generator or self._real.unwrapped.np_random
+        return self._real
+
+    def _begin(self, seed, options=None):
+        """Start an episode where gymnasium's reset(seed=seed) would: the episode's seed, or its start state (bytes)."""
+        if options is not None or not (seed is None or (isinstance(seed, int) and seed >= 0)):
+            self._refuse("it resets its environment with options or an unusual seed")
+        if seed is not None:
+            self._seed, self._generator, self._start = seed, None, seed
+            state = episodes.start_state(seed)
+        else:  # the next draw of the env's own generator, seeded by its last seeded reset
+            raw = self._session.drawing_env()
+            if self._generator is None:
+                if self._seed is None:
+                    self._refuse("it resets its environment without ever seeding it")
+                raw.reset(seed=self._seed)
+                self._generator = raw.np_random
+            raw.np_random = self._generator
+            raw.reset()
+            state = np.asarray(raw.state, dtype=np.float64)
+            self._start, self._run.memory.kit_starts = state.tobytes(), True
+        self._obs = np.array(state, dtype=np.float32)
+        return self._start
+
+    def reset(self, *, seed=None, options=None):
+        if not self._live():
+            return self._gymnasium().reset(seed=seed, options=options)
+        self._begin(seed, options)
+        return self._obs.copy(), {}
+
+    def step(self, action):
+        if not self._live():
+            return self._gymnasium().step(action)
+        start, self._start = self._start, None
+        if start is None:
+            self._refuse("it steps an episode that has ended")
+        if not episodes.is_action(action) or action != self._policy(self._obs):
+            self._refuse("it plays other actions than those of CartPoleLinearPolicy(params)")
+        reward = self._session._route(self._run, self._policy, start)
+        self._run.longest = max(self._run.longest, reward)
+        limit = episodes.constants().max_episode_steps
+        return self._obs.copy(), reward, reward < limit, reward >= limit, {}
+
+    def play(self, policy, seed):
+        """``run_policy(policy, seed, env=self)``: the kit's own loop, so no check is needed."""
+        if not self._live():
+            return run_policy(policy, seed, self)
+        return self._session._route(self._run, policy, self._begin(seed))
+
+    def close(self):
+        if self._real is not None:
+            self._real.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+    def __getattr__(self, name):
+        if name.startswith("__"):
+            raise AttributeError(name)
+        if name not in KitEnv._SPACES and self._live():
+            self._refuse(f"it uses env.{name}")
+        return getattr(self._gymnasium(), name)
+
+
 class Replaying:
     """The record-then-replay part of ``Session``, which defines ``_results``, ``_pending``,
     ``batched``, ``cancelled``, ``on_round``, ``_threaded``, ``_stopped_by``, ``_current_run`` and
@@ -201,11 +328,43 @@ class Replaying:
                 continue
             signature = inspect.signature(function) if name == counted else None
             setattr(module, name, self._replayed(function, signature, params_argument))
+        make = gymnasium.make
+        if self.batched:
+            gymnasium.make = self._making(make)
         try:
             yield
         finally:
+            gymnasium.make = make
             for name, function in originals.items():
                 setattr(module, name, function)
+            if self._drawing is not None:
+                self._drawing.close()
+                self._drawing = None
+
+    def _making(self, make):
+        """What stands in for ``gymnasium.make`` while the session runs: a ``KitEnv`` for
+        ``make("CartPole-v1")`` called by the code of the counted function (directly or through
+        ``make_env()``) in one of the session's runs; gymnasium's own environment anywhere else."""
+
+        @functools.wraps(make)
+        def making(*args, **kwargs):
+            run = self._current_run()
+            if (run is not None and run.session is self and run.making is not None and self.not_replayed is None
+                    and args == (ENV_ID,) and kwargs in ({}, {"render_mode": None})):
+                frame = sys._getframe(1)
+                if frame.f_code is make_env.__code__:
+                    frame = frame.f_back
+                if frame.f_code is run.making[0]:
+                    return KitEnv(self, run, run.making[1])
+            return make(*args, **kwargs)
+
+        return making
+
+    def drawing_env(self):
+        """The raw CartPole in which the ``KitEnv``s draw their unseeded starts (each with its own generator)."""
+        if self._drawing is None:
+            self._drawing = make_env()
+        return self._drawing.unwrapped
 
     def _replayed(self, function, signature, params_argument):
         counted = signature is not None
@@ -216,29 +375,37 @@ class Replaying:
             if run is None or run.session is not self:
                 return function(*args, **kwargs)
             call = _call_key(signature, params_argument, args, kwargs) if counted and self.batched else None
-            if run.recording:  # inside an outer call's recording pass
-                if call is not None and self._foresee(run, call, run.recorded):
-                    return PLACEHOLDER_REWARD
-                return self._watched(run, call, function, args, kwargs)
-            if self.cancelled:
-                raise Cancelled()
-            if run.replaying or not self.batched:  # an outer call's recording covered this one
-                return self._real_pass(run, function, args, kwargs, call, counted)
-            state, evaluations = run.random_state(), run.evaluations
+            code = getattr(function, "__code__", None)  # the code that may make a KitEnv, and its params
+            making, run.making = run.making, None if call is None or call[1] is None or code is None else (code, call[1])
             try:
-                if not (call is not None and self._foresee(run, call, self._pending)):
-                    self._record(run, function, args, kwargs, state)
-                return self._real_pass(run, function, args, kwargs, call, counted)
-            except Redo:
-                run.set_random_state(state)
-                run.evaluations, run.memory.refuted, run.memory.foresaw = evaluations, True, False
-                self._record(run, function, args, kwargs, state)
-                return self._real_pass(run, function, args, kwargs, call, counted)
+                return self._replay_call(run, call, function, args, kwargs, counted)
             finally:
-                run.memory.foresaw = False
-                run.own.rewind()
+                run.making = making
 
         return replayed
+
+    def _replay_call(self, run, call, function, args, kwargs, counted):
+        if run.recording:  # inside an outer call's recording pass
+            if call is not None and self._foresee(run, call, run.recorded):
+                return PLACEHOLDER_REWARD
+            return self._watched(run, call, function, args, kwargs)
+        if self.cancelled:
+            raise Cancelled()
+        if run.replaying or not self.batched:  # an outer call's recording covered this one
+            return self._real_pass(run, function, args, kwargs, call, counted)
+        state, evaluations = run.random_state(), run.evaluations
+        try:
+            if not (call is not None and self._foresee(run, call, self._pending)):
+                self._record(run, function, args, kwargs, state)
+            return self._real_pass(run, function, args, kwargs, call, counted)
+        except Redo:
+            run.set_random_state(state)
+            run.evaluations, run.memory.refuted, run.memory.foresaw = evaluations, True, False
+            self._record(run, function, args, kwargs, state)
+            return self._real_pass(run, function, args, kwargs, call, counted)
+        finally:
+            run.memory.foresaw = False
+            run.own.rewind()
 
     def _record(self, run, function, args, kwargs, state):
         """Run ``function`` once with placeholder rewards; what it asked for is played in the next round."""
@@ -268,7 +435,7 @@ class Replaying:
     def _real_pass(self, run, function, args, kwargs, call, counted):
         run.replaying += 1
         try:
-            value = self._watched(run, call, function, args, kwargs)
+            value = (self._watched if run.making is None else self._checked)(run, call, function, args, kwargs)
         finally:
             run.replaying -= 1
         if counted:
@@ -281,12 +448,39 @@ class Replaying:
                     raise Cancelled() from None
         return value
 
+    def _checked(self, run, call, function, args, kwargs):
+        """A real pass whose code may play in ``KitEnv``s. If it did and refused, failed, or met an
+        episode longer than any checked so far, it runs again plainly (from the same random state),
+        and that is its value; if the two differ, the session makes no more ``KitEnv``s."""
+        state, handed = run.random_state(), list(run.own.handed)
+        run.longest = -1
+        try:
+            value = self._watched(run, call, function, args, kwargs)
+            if run.longest <= self.checked_up_to:
+                return value
+        except (Exception, NotReplayable):
+            if run.longest < 0:  # no KitEnv: its own error
+                raise
+            value = NotReplayable
+        run.set_random_state(state)
+        run.own.handed.extend(handed)
+        making, run.making = run.making, None
+        try:
+            plain = function(*args, **kwargs)
+        finally:
+            run.making = making
+        if run.longest < math.inf and np.array_equal(value, plain):
+            self.checked_up_to = max(self.checked_up_to, run.longest)
+        elif self.not_replayed is None:
+            self.not_replayed = "its number changes when the kit plays each episode at once: does it count steps?"
+        return plain
+
     def _watched(self, run, call, function, args, kwargs):
         """Call ``function``; for a foreseeable call, note which episodes it asked for."""
         if call is None:
             return function(*args, **kwargs)
         memory, outer = run.memory, run.memory.asked
-        memory.asked = []
+        memory.asked, memory.kit_starts = [], False
         try:
             value = function(*args, **kwargs)
             _learn(memory, call, memory.asked)
@@ -324,10 +518,11 @@ def _learn(memory, call, asked):
         memory.refuted = True  # it played other parameters than its own, or several policy classes
         return
     unseeded = {isinstance(key[2], bytes) for key in asked}  # a start state, not a seed: see batch.Session._route
-    if len(unseeded) > 1:
+    if len(unseeded) > 1 and not memory.kit_starts:
         memory.refuted = True  # seeded and unseeded episodes in one call
         return
-    seeds = (UNSEEDED, len(asked)) if True in unseeded else tuple(key[2] for key in asked)
+    # The starts a KitEnv drew follow from its seeds, like seeds; the run's own env draws new ones every call.
+    seeds = (UNSEEDED, len(asked)) if True in unseeded and not memory.kit_starts else tuple(key[2] for key in asked)
     known = memory.seeds_of.get(arguments)
     if known is not None:
         if known == (asked[0][0], seeds):

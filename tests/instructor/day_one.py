@@ -1,6 +1,6 @@
 """The student edition as a student opens it on day one, for the tests that look at it.
 
-``day_one_edition(out, tmp_path_factory)`` builds the student edition (``instructor.release``) and makes sure every
+``day_one_edition(out[, tmp_path_factory])`` builds the student edition (``instructor.release``) and makes sure every
 untouched TODO raises ``TodoNotDone`` when it runs. The release tool is to write such stubs
 itself (``raise TodoNotDone("1.2.1")``, ``hwlib/machinery/todos.py``); where it still writes ``pass`` or a
 bare ``raise NotImplementedError()``, this module writes those stubs in the built copy, and a
@@ -87,12 +87,17 @@ def raising_stubs(kit):
     return changed
 
 
-def day_one_edition(out, tmp_path_factory, **options):
-    """The untouched student edition in ``out`` (built with the test run's answer key, ``editions.build``,
-    then ``raising_stubs``)."""
-    from editions import build  # noqa: PLC0415
+def day_one_edition(out, tmp_path_factory=None, **options):
+    """The untouched student edition in ``out`` (built, then ``raising_stubs``): in a test run with the run's
+    one answer key (``editions.build``), else (``benchmarks/bench_dayone.py``) as the release builds it."""
+    if tmp_path_factory is None:
+        from instructor.release import build_student_edition  # noqa: PLC0415 - the instructor's tool
 
-    build(out, tmp_path_factory, **options)
+        build_student_edition(KIT, out, **options)
+    else:
+        from editions import build  # noqa: PLC0415
+
+        build(out, tmp_path_factory, **options)
     raising_stubs(out)
     return Path(out)
 

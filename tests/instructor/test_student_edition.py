@@ -156,14 +156,19 @@ def run_in(python, kit, *args, timeout=900):
     return subprocess.run([str(python), *args], cwd=kit, env=kit_env(kit), capture_output=True, text=True, timeout=timeout)
 
 
-@pytest.fixture(scope="module")
-def natural_kit(tmp_path_factory):
-    """A student edition with one natural solution per TODO."""
-    chosen = {}
+def natural_edition(out, tmp_path_factory, **chosen):
+    """A student edition at ``out`` with one natural solution per TODO: the first of each, or ``chosen[todo]``
+    (with the test run's answer key: ``editions.build``)."""
     for path in natural_solutions():
         chosen.setdefault(path.name.split("_")[0], path)
     replace = {(todo, block_file(todo)): path.read_text() for todo, path in chosen.items()}
-    return editions.build(tmp_path_factory.mktemp("natural") / "kit", tmp_path_factory, replace=replace)
+    return editions.build(out, tmp_path_factory, replace=replace)
+
+
+@pytest.fixture(scope="module")
+def natural_kit(tmp_path_factory):
+    """A student edition with one natural solution per TODO."""
+    return natural_edition(tmp_path_factory.mktemp("natural") / "kit", tmp_path_factory)
 
 
 def test_a_student_edition_with_natural_solutions_passes_its_own_unit_tests(python, natural_kit):
@@ -197,6 +202,23 @@ def test_a_student_hands_in_what_the_grader_grades_in_full(python, natural_kit, 
     with open_submission(zip_path) as opened:
         graded = grader.grade(opened.kit)
     assert graded["total"]["auto_earned"] == AUTO_POINTS, [(e["id"], e["auto_earned"]) for e in graded["todos"]]
+
+
+@pytest.mark.parametrize("solution", ["1.3.1_own_env_loop.py", "1.3.1_own_env_seeded_once.py"])
+def test_run_all_of_p1_works_with_an_eval_params_that_plays_in_its_own_environment(tmp_path, tmp_path_factory, solution):
+    """Issue 25.1: an eval_params with its own gym.make("CartPole-v1") loop is correct, and the kit's runs
+    replay it in their batches; played step by step, the notebook's sweep would take an hour, and the
+    kit would stop it (TooSlow) and Run All with it."""
+    from day_one import run_all
+
+    kit = natural_edition(tmp_path / "kit", tmp_path_factory, **{"1.3.1": NATURAL / solution})
+    assert "gym.make" in (kit / "hwlib" / "policy_search.py").read_text()
+    run = run_all(kit / "notebooks" / P1, kit)
+    assert run["stopped"] is None, [line for outputs in run["outputs"].values() for output in outputs
+                                    for line in output.get("traceback", [])][-6:]
+    sweep = [text for outputs in run["outputs"].values() for output in outputs
+             for text in [output.get("text", "")] if "seeds converge within" in text]
+    assert sweep and "100%" in sweep[0], sweep  # the sweep ran, and rates converge
 
 
 def test_the_hand_in_refuses_what_the_grader_cannot_read(python, tmp_path):

@@ -488,3 +488,157 @@ def test_unseeded_starts_are_drawn_one_reset_at_a_time_if_gymnasium_draws_them_o
     monkeypatch.setattr(policy_search, "eval_params", eval_unseeded)
     batched = run_training(3, 5, 0.001, seed=2, progress=False).rewards
     np.testing.assert_array_equal(batched, run_training(3, 5, 0.001, seed=2, batched=False, progress=False).rewards)
+
+
+# --- eval_params with an environment of its own (issue 25.1) -------------------------------------
+# The natural solutions of 1.3.1 that play their episodes in their own gym.make("CartPole-v1"):
+# reset(seed=seed + k) each episode, one env seeded at its first reset, or one make_env() passed to
+# run_policy. In a kit run that environment is the kit's (replay.KitEnv): the episodes are played in
+# the batches, and the numbers are those of the same code on gymnasium's own environment.
+
+OWN_ENVIRONMENT = ["1.3.1_own_env_loop.py", "1.3.1_own_env_seeded_once.py", "1.3.1_one_env_reused.py"]
+
+
+def natural_eval_params(name):
+    """``eval_params`` with ``tests/grader/natural_solutions/<name>`` as its TODO block, its names looked up in
+    hwlib/policy_search.py as the student's file looks them up."""
+    import textwrap
+    import types
+    from pathlib import Path
+
+    block = (Path(__file__).resolve().parents[1] / "grader" / "natural_solutions" / name).read_text()
+    source = ("def eval_params(params, num_rollouts=20, seed=0):\n    policy = CartPoleLinearPolicy(params)\n"
+              "    mean_reward = 0.0\n" + textwrap.indent(block, "    ") + "\n    return float(mean_reward)\n")
+    defined = {}
+    exec(compile(source, name, "exec"), vars(policy_search), defined)
+    return types.FunctionType(defined["eval_params"].__code__, vars(policy_search), "eval_params",
+                              defined["eval_params"].__defaults__)
+
+
+@pytest.mark.parametrize("name", OWN_ENVIRONMENT)
+def test_an_eval_params_with_its_own_environment_is_played_in_the_batches_with_the_plain_numbers(monkeypatch, name):
+    import gymnasium
+
+    make = gymnasium.make
+    monkeypatch.setattr(policy_search, "eval_params", natural_eval_params(name))
+    session, replaying = session_replaying()
+    with replaying:
+        [run] = session.run([lambda: policy_search.train_cartpole_policy(4, 5, 0.002, seed=3)])
+    plain = policy_search.train_cartpole_policy(4, 5, 0.002, seed=3)  # outside a kit run: gymnasium's environment
+    np.testing.assert_array_equal(run.rewards, plain.rewards)
+    np.testing.assert_array_equal(run.params_history, plain.params_history)
+    assert len(np.unique(run.rewards)) > 2  # real curves
+    assert session.not_replayed is None and session.episodes_played == (1 + 9 * 4) * 5  # every episode in the batches
+    assert gymnasium.make is make
+
+
+@pytest.mark.parametrize("name", OWN_ENVIRONMENT)
+def test_a_sweep_with_its_own_environment_equals_the_plain_loop(monkeypatch, name):
+    monkeypatch.setattr(policy_search, "eval_params", natural_eval_params(name))
+    options = {"learning_rates": [0.0005, 0.002], "num_seeds": 2, "first_seed": 3, "num_training_iterations": 3,
+               "num_rollouts_per_eval": 5, "progress": False}
+    batched = learning_rate_sweep(**options)
+    np.testing.assert_array_equal(batched.rewards, learning_rate_sweep(**options, batched=False).rewards)
+    assert len(np.unique(batched.rewards)) > 3
+
+
+def eval_counting_steps(params, num_rollouts=20, seed=0):
+    """Counts steps rather than adding up rewards: in gymnasium's CartPole (+1 a step) the same number."""
+    import gymnasium as gym
+
+    policy, env, steps = CartPoleLinearPolicy(params), gym.make("CartPole-v1"), 0
+    for k in range(num_rollouts):
+        obs, _ = env.reset(seed=seed + k)
+        done = False
+        while not done:
+            obs, _, terminated, truncated, _ = env.step(policy(obs))
+            steps += 1
+            done = terminated or truncated
+    return steps / num_rollouts
+
+
+def eval_capped(params, num_rollouts=20, seed=0):
+    """Wrong (episodes end after 60 steps), and a plain loop: its numbers are what the kit must give."""
+    import gymnasium as gym
+
+    policy, env, total = CartPoleLinearPolicy(params), gym.make("CartPole-v1"), 0.0
+    for k in range(num_rollouts):
+        obs, _ = env.reset(seed=seed + k)
+        for _ in range(60):
+            obs, reward, terminated, truncated, _ = env.step(policy(obs))
+            total += reward
+            if terminated or truncated:
+                break
+    return total / num_rollouts
+
+
+def eval_always_left(params, num_rollouts=20, seed=0):
+    """Wrong (it never asks the policy), and a plain loop."""
+    import gymnasium as gym
+
+    env, total = gym.make("CartPole-v1"), 0.0
+    for k in range(num_rollouts):
+        env.reset(seed=seed + k)
+        done = False
+        while not done:
+            _, reward, terminated, truncated, _ = env.step(0)
+            total += reward
+            done = terminated or truncated
+    return total / num_rollouts
+
+
+KEPT = {}
+
+
+def eval_env_kept_between_calls(params, num_rollouts=20, seed=0):
+    """Correct: one environment made at the first call and kept for the next ones."""
+    import gymnasium as gym
+
+    if "env" not in KEPT:
+        KEPT["env"] = gym.make("CartPole-v1")
+    env = KEPT["env"]
+    policy, total = CartPoleLinearPolicy(params), 0.0
+    for k in range(num_rollouts):
+        obs, _ = env.reset(seed=seed + k)
+        done = False
+        while not done:
+            obs, reward, terminated, truncated, _ = env.step(policy(obs))
+            total += reward
+            done = terminated or truncated
+    return total / num_rollouts
+
+
+@pytest.mark.parametrize("student", [eval_counting_steps, eval_capped, eval_always_left, eval_env_kept_between_calls])
+def test_own_environment_code_the_kit_cannot_replay_gets_the_plain_loops_numbers(monkeypatch, student):
+    monkeypatch.setattr(policy_search, "eval_params", student)
+    KEPT.clear()
+    session, replaying = session_replaying()
+    with replaying:
+        [run] = session.run([lambda: policy_search.train_cartpole_policy(4, 5, 0.004, seed=3)])
+    KEPT.clear()
+    plain = policy_search.train_cartpole_policy(4, 5, 0.004, seed=3)
+    np.testing.assert_array_equal(run.rewards, plain.rewards)
+    np.testing.assert_array_equal(run.params_history, plain.params_history)
+    assert session.not_replayed is not None  # the kit noticed, and made no more of its environments
+    if student is eval_env_kept_between_calls:  # the first call's environment replays no other call's episodes
+        assert "keeps its environment" in session.not_replayed
+
+
+def test_a_sweep_whose_own_environment_cannot_be_replayed_is_stopped_with_the_reason(monkeypatch):
+    monkeypatch.setattr(policy_search, "eval_params", eval_counting_steps)
+    with pytest.raises(TooSlow, match=r"This learning-rate sweep would take about") as caught:
+        learning_rate_sweep([0.001, 0.002], num_seeds=10, progress=False, max_minutes=0.01)
+    assert "environment of its own" in caught.value.second and "count steps" in caught.value.second
+    assert "run_policy(policy, seed=seed + k)" in caught.value.second
+    assert not run_threads_left()
+
+
+@pytest.mark.timeout(300)
+def test_kernel_interrupt_stops_a_sweep_whose_eval_params_has_its_own_environment(kernel_interrupt, monkeypatch):
+    import gymnasium
+
+    make = gymnasium.make
+    monkeypatch.setattr(policy_search, "eval_params", natural_eval_params("1.3.1_own_env_seeded_once.py"))
+    interrupt_the_sweep(kernel_interrupt, monkeypatch, after_rounds=4)
+    assert not run_threads_left()
+    assert gymnasium.make is make and policy_search.run_policy is cartpole.run_policy

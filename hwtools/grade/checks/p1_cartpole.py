@@ -188,6 +188,16 @@ def _eval_episodes(args, result):
     return episodes, None
 
 
+def _first_call(args, result, want):
+    """The episodes of the case's first eval_params call, or the Verdict that ends the check."""
+    if result["status"] != "ok":
+        return None, Verdict(False, want, result["error"])
+    episodes, problem = _eval_episodes(args, result)
+    if problem:
+        return None, Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}")
+    return {name: part[:args["num_rollouts"]] for name, part in episodes.items()}, None
+
+
 def _follows(records, row, params):
     """True if episode ``row`` was played with CartPoleLinearPolicy(params): its parameters, or for
     an own loop every action it took (equation (1) on the observation the grader had shown)."""
@@ -210,12 +220,9 @@ def _distinct(starts):
 def judge_eval_mean(args, result, expected, services):
     count = args["num_rollouts"]
     want = f"the mean of {count} episode reward(s) of params {show(args['params'])}, each from its own start state"
-    if result["status"] != "ok":
-        return Verdict(False, want, result["error"])
-    episodes, problem = _eval_episodes(args, result)
-    if problem:
-        return Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}")
-    first = {name: part[:count] for name, part in episodes.items()}
+    first, stop = _first_call(args, result, want)
+    if stop:
+        return stop
     if not np.all(first["actions_follow"]):
         wrong = int(np.flatnonzero(~first["actions_follow"])[0])
         played = f"params {show(first['params'][wrong])}" if first["doors"][wrong] != OWN_LOOP else \
@@ -236,12 +243,10 @@ def judge_eval_mean(args, result, expected, services):
 def judge_eval_distinct(args, result, expected, services):
     count = args["num_rollouts"]
     want = f"{count} episodes from {count} different start states"
-    if result["status"] != "ok":
-        return Verdict(False, want, result["error"])
-    episodes, problem = _eval_episodes(args, result)
-    if problem:
-        return Verdict(False, want, problem)
-    seeds, seeded, starts = episodes["seeds"][:count], episodes["seeded"][:count], episodes["starts"][:count]
+    first, stop = _first_call(args, result, want)
+    if stop:
+        return stop
+    seeds, seeded, starts = first["seeds"], first["seeded"], first["starts"]
     return Verdict(_distinct(starts), want, f"{len(np.unique(starts, axis=0))} different start state(s), seeds "
                                             f"{_shown_seeds(seeds, seeded)}")
 

@@ -181,10 +181,12 @@ def make_step(rng, variant, start="zero", steps=1):
             "learning_rate": float((0.05, 0.01, 0.02)[variant % 3]), "steps": steps}
 
 
+def _weight(args, j):
+    return f"weight {j}" + (" (the bias)" if j == int(args["n_features"]) else "")
+
+
 def _step_weight(args, index):
-    step, j = index
-    bias = " (the bias)" if j == int(args["n_features"]) else ""
-    return f"weight {j}{bias} after step {step + 1}"
+    return f"{_weight(args, index[1])} after step {index[0] + 1}"
 
 
 TODO_2_2_3 = (
@@ -224,9 +226,7 @@ def make_iterations(rng, variant):
 
 
 def _class_weight(args, index):
-    c, j = index
-    bias = " (the bias)" if j == int(args["n_features"]) else ""
-    return f"classifier {c}, weight {j}{bias}"
+    return f"classifier {index[0]}, {_weight(args, index[1])}"
 
 
 TODO_2_3_1 = (
