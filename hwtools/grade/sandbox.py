@@ -30,8 +30,10 @@ runs that way.
 
 **One untrusted run at a time.** Sandboxes cannot hide every piece of kernel state two live
 processes share: byte-range, OFD and flock locks on a file both bind read-only, inotify on it, the
-timing of a shared CPU or cache. So two runs that hold student code never overlap in this process
-(``_UNTRUSTED_RUN``, whatever grader or submission they belong to): a run may be *started* early
+timing of a shared CPU or cache. So two runs that hold student code never overlap on this machine
+(``_UNTRUSTED_RUN``, whatever grader, grading process or submission they belong to: a thread lock
+in each process, and an ``flock`` on a file in the grading user's own ``~/.cache/hwgrade/`` between
+processes, which the pool's users cannot reach and the kernel releases when a grader dies): a run may be *started* early
 (its sandbox made, Python, numpy, gymnasium and the grader's own runtime imported: trusted code
 only) while another one executes, but it *begins* (``WorkerProcess.begin``, on the first message
 the grader sends, before any code of the kit is imported) only once the run before it has ended
@@ -58,6 +60,7 @@ lines do), so that nothing a worker sends can take the trusted side down.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import resource
@@ -87,7 +90,36 @@ TOKEN_VARIABLE = "HWGRADE_SANDBOX"
 KINDS = ("auto", "bwrap", "user", "none")
 GONE_SECONDS = 30.0  # to wait for a killed sandbox's last process
 BUDGET_WORDS = "the submission's time budget was used up"
-_UNTRUSTED_RUN = threading.Lock()  # held by the one run of student code that executes in this process
+
+
+class _OneRunAtATime:
+    """Held by the one run of student code that executes on this machine (for this user's graders)."""
+
+    def __init__(self):
+        self._thread, self._fd = threading.Lock(), None
+
+    def acquire(self):
+        self._thread.acquire()
+        try:
+            if self._fd is None:
+                folder = Path.home() / ".cache" / "hwgrade"
+                folder.mkdir(mode=0o700, parents=True, exist_ok=True)
+                self._fd = os.open(folder / "untrusted-run.lock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
+            fcntl.flock(self._fd, fcntl.LOCK_EX)
+        except OSError as error:
+            self._thread.release()
+            raise RuntimeError(f"no run begins: the lock that keeps runs of student code apart ({error}); the "
+                               "grading user's home folder must be writable") from error
+        except BaseException:
+            self._thread.release()
+            raise
+
+    def release(self):
+        fcntl.flock(self._fd, fcntl.LOCK_UN)
+        self._thread.release()
+
+
+_UNTRUSTED_RUN = _OneRunAtATime()
 _SURVIVORS = []  # set when a run's processes could not be killed: no run begins after it
 
 

@@ -512,6 +512,29 @@ def test_two_runs_of_student_code_never_overlap(mode, request, tmp_path):
     assert a_end <= b_start or b_end <= a_start, "two runs of student code overlapped"
 
 
+def test_runs_of_two_grading_processes_never_overlap():
+    """Two graders on one machine (two class runs, a test run beside another) take turns as well: a
+    run begins only once another process's run has ended."""
+    holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent("""
+        import time
+        from hwtools.grade import sandbox
+        sandbox._UNTRUSTED_RUN.acquire()
+        print("holding", flush=True)
+        time.sleep(2)
+        print(time.time(), flush=True)
+        sandbox._UNTRUSTED_RUN.release()
+    """)], stdout=subprocess.PIPE, text=True, cwd=KIT)
+    try:
+        assert holder.stdout.readline() == "holding\n"
+        sandbox._UNTRUSTED_RUN.acquire()
+        began = time.time()
+        sandbox._UNTRUSTED_RUN.release()
+        assert began >= float(holder.stdout.readline()), "a run began while another process's run was alive"
+    finally:
+        holder.kill()
+        holder.wait()
+
+
 def test_with_a_reference_and_no_sandbox_no_student_code_runs(monkeypatch, tmp_path):
     """Fail closed: where neither bubblewrap nor the user fallback works, a grader with a reference
     (points decided) refuses to run a submission, with the fix; only an explicit isolation="none"
