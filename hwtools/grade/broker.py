@@ -144,8 +144,8 @@ class Conversation:
         self.sent += 1
         try:
             self.process.send(dict(message, n=self.sent))
-        except OSError:
-            raise Stop("ended") from None
+        except OSError:  # the worker is gone; a message it left unread came out of turn
+            raise Stop("violation" if isinstance(self.process.receive(), dict) else "ended") from None
         except channel.ChannelTimeout as timeout:
             raise _stop(f"timeout:{timeout}") from None
         return self.sent

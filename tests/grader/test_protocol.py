@@ -528,3 +528,21 @@ def test_the_graders_threads_parse_students_code_one_at_a_time(monkeypatch):
         gc.callbacks.remove(yield_gil)
         gc.set_threshold(*threshold)
     assert errors == []
+
+
+@pytest.mark.parametrize("left, status", [({"op": "result", "re": 1}, "violation"), ("ended:", "ended")])
+def test_a_message_left_by_a_worker_that_is_gone_is_out_of_turn(left, status):
+    """A worker that answers, sends a forged answer and exits before the grader's next request (the
+    request's write then fails) broke the protocol, however the machine's load orders the two; one that
+    left nothing simply ended."""
+
+    class Gone:
+        def send(self, message):
+            raise BrokenPipeError
+
+        def receive(self):
+            return left
+
+    with pytest.raises(broker.Stop) as stop:
+        broker.Conversation(Gone(), None, None).send({"op": "case"})
+    assert stop.value.status == status
