@@ -290,6 +290,7 @@ def test_a_child_that_rewrites_results_json_after_the_grader_does_not_change_the
 def test_a_submission_cannot_borrow_the_reference_from_another_run_s_kit(bundle, layout, tmp_path, container,
                                                                         answer_key):
     submission, cheat = attack("tmp_borrowing", layout, answer_key)
+    cheat["bodies"]["1.2.1"] = cheat["bodies"]["1.2.1"].replace("THIS_CLONE", str(layout.root))
     data, _ = autograde(bundle, tmp_path, submission, container)
     assert points_tests(data)["1.2.1"]["score"] == 0 and data["score"] == cheat["points"] == 0
 
