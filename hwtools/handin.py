@@ -67,6 +67,11 @@ def code_files(kit):
                 found.append(relative)
     if not any(name.startswith("hwlib/") for name in found):
         raise HandinError(f"{kit}: no hwlib/ folder with Python files; run this from the kit")
+    clash = markers.name_clash(found)
+    if clash:
+        raise HandinError(f"{clash[0]} and {clash[1]} are one file on macOS and Windows (their names differ only in "
+                          "letter case or Unicode normalisation), and the grader refuses such a zip: rename or delete "
+                          "one (nothing was written)")
     return sorted(found)
 
 

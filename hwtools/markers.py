@@ -38,6 +38,7 @@ import io
 import json
 import re
 import tokenize
+import unicodedata
 from dataclasses import dataclass
 
 ID_PATTERN = r"[0-9]+(?:\.[0-9]+)+"
@@ -73,6 +74,33 @@ def is_leftover(path):
         or part in LEFTOVER_NAMES or part.endswith(LEFTOVER_ENDINGS) or (len(part) > 1 and part[0] == part[-1] == "#")
         for part in parts
     )
+
+
+def folded(path):
+    """``path`` as a case-insensitive, normalising file system (macOS, Windows) sees it: Unicode NFC
+    (macOS stores NFD), case folded (``str.casefold``: "ß" is "ss"), NFC again."""
+    return unicodedata.normalize("NFC", unicodedata.normalize("NFC", str(path)).casefold())
+
+
+def name_clash(paths):
+    """The first two of ``paths`` (relative, ``/``-separated files) that are one file on macOS or
+    Windows (``folded``: only letter case or Unicode normalisation differ, or a file has the folded
+    name of another's folder), as a pair; None when every path stays itself on every system. A kit
+    or a submission with such a pair is refused by every reader (the grader's, the hand-in's):
+    unzipped there, one file would overwrite the other and a reviewer would read other code."""
+    files, folders = {}, {}
+    for path in sorted(str(path).replace("\\", "/") for path in paths):
+        key = folded(path)
+        if key in files and files[key] != path:
+            return files[key], path
+        files.setdefault(key, path)
+        parts = path.split("/")
+        for depth in range(1, len(parts)):
+            folders.setdefault(folded("/".join(parts[:depth])), "/".join(parts[:depth]))
+    for key, path in files.items():
+        if key in folders:
+            return folders[key] + "/", path
+    return None
 
 
 class MarkerError(ValueError):

@@ -7,7 +7,8 @@ read as that zip. Only ``hwlib/**/*.py`` and the notebooks are copied, into a pr
 folder, and only after every check passed: a zip entry with an absolute path or a ``..`` part, a
 link, a file over its size limit (the declared sizes are checked before any byte is extracted, and
 the bytes are counted while extracting), too many files, or a file name with control characters
-reject the whole submission with the reason. A zip's entries are counted in its central directory
+reject the whole submission with the reason, and so do two files that are one file on macOS or
+Windows (names that differ only in letter case or Unicode normalisation: ``markers.name_clash``). A zip's entries are counted in its central directory
 itself, record by record, before anything parses it: a zip whose end record under-declares its
 entries is refused after ``MAX_ENTRIES`` records, with bounded memory.
 """
@@ -190,6 +191,10 @@ def _folder_entries(root):
 def _find_kit(entries, kit_names):
     """(prefix of the kit root, {entry path: path in the kit}) of the files to take, or raise."""
     files = [entry for entry in entries if entry.kind != "dir"]
+    clash = markers.name_clash(entry.path for entry in files)
+    if clash:
+        raise Unusable("rejected", f"{clash[0]} and {clash[1]} are one file on macOS and Windows (their names differ "
+                                   "only in letter case or Unicode normalisation); rename one and send again")
     roots = set()
     for entry in files:
         parts = entry.path.split("/")

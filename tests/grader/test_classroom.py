@@ -425,6 +425,35 @@ def test_zip_paths_that_leave_the_submission_reject_it(a_kit, layout, tmp_path, 
     assert read(archive, layout)[0] == f"rejected: {why}"
 
 
+@pytest.mark.parametrize("other", [
+    "hwlib/FINITE_DIFF.py",  # letter case: one file on macOS and Windows
+    "HWLIB/finite_diff.py",
+    "hwlib/finite_diff.py/x.py",  # a folder with a file's name
+])
+def test_names_that_are_one_file_on_macos_or_windows_reject_the_zip(a_kit, layout, tmp_path, other):
+    archive = zip_folder(a_kit, tmp_path / "s.zip")
+    with zipfile.ZipFile(archive, "a") as handle:
+        handle.writestr(other, "def finite_diff(*args):\n    return 0\n")
+    status = read(archive, layout)[0]
+    assert status.startswith("rejected: ") and "one file on macOS and Windows" in status, status
+    assert "finite_diff.py" in status
+
+
+def test_unicode_forms_of_one_name_reject_the_zip_and_the_folder(a_kit, layout, tmp_path):
+    composed, decomposed = "hwlib/caf\u00e9.py", "hwlib/cafe\u0301.py"  # NFC (Windows, Linux) and NFD (macOS)
+    archive = zip_folder(a_kit, tmp_path / "s.zip")
+    with zipfile.ZipFile(archive, "a") as handle:
+        handle.writestr(composed, "x = 1\n")
+        assert read(archive, layout)[0] == "ok"  # one such file is fine
+        handle.writestr(decomposed, "x = 2\n")
+    assert "one file on macOS and Windows" in read(archive, layout)[0]
+    folder = tmp_path / "alice"
+    shutil.copytree(a_kit, folder)
+    (folder / "hwlib" / "Logreg.py").write_text("x = 1\n")  # this file system keeps both
+    status = read(folder, layout)[0]
+    assert status.startswith("rejected: hwlib/Logreg.py and hwlib/logreg.py are one file"), status
+
+
 def test_a_link_in_a_zip_is_refused(a_kit, layout, tmp_path):
     archive = zip_folder(a_kit, tmp_path / "s.zip")
     with zipfile.ZipFile(archive, "a") as handle:

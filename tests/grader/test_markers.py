@@ -321,3 +321,15 @@ def test_the_student_edition_from_a_windows_checkout_is_the_one_from_lf(how, tmp
     different = [name for name in from_lf if from_lf[name] != from_windows[name]]
     assert not different, different
     assert not any(b"\r" in data for data, _ in from_windows.values())
+
+
+@pytest.mark.parametrize("paths, clash", [
+    (["hwlib/a.py", "hwlib/b.py", "notebooks/p1.ipynb"], None),
+    (["hwlib/a.py", "hwlib/A.py"], ("hwlib/A.py", "hwlib/a.py")),
+    (["hwlib/stra\u00dfe.py", "hwlib/STRASSE.py"], ("hwlib/STRASSE.py", "hwlib/stra\u00dfe.py")),  # casefold: ss
+    (["hwlib/\u00e9.py", "hwlib/e\u0301.py"], ("hwlib/e\u0301.py", "hwlib/\u00e9.py")),  # NFC and NFD
+    (["hwlib/x", "HWLIB/X/y.py"], ("HWLIB/X/", "hwlib/x")),  # a file and a folder of one name
+    (["hwlib/a.py", "hwlib/a.py"], None),  # the same path twice is not a clash (readers name it otherwise)
+])
+def test_name_clash_finds_names_that_are_one_file_on_macos_or_windows(paths, clash):
+    assert markers.name_clash(paths) == clash

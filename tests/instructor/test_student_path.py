@@ -217,6 +217,12 @@ def test_hand_in_leaves_the_leftovers_out(kit_with_leftovers):
     assert "hwlib/cartpole.py" in names and P1 in names and not set(LEFTOVERS) & set(names)
 
 
+def test_hand_in_refuses_two_files_that_are_one_on_macos_or_windows(kit_with_leftovers):
+    (kit_with_leftovers / "hwlib" / "CartPole.py").write_text("x = 1\n")
+    with pytest.raises(handin.HandinError, match=r"hwlib/CartPole\.py and hwlib/cartpole\.py are one file on macOS"):
+        handin.code_files(kit_with_leftovers)
+
+
 def test_an_untouched_todo_is_seen_whatever_its_checkpoint_holds(tmp_path):
     kit = homework_files(tmp_path / "kit", student_files(KIT))
     leave_leftovers(kit, student_files(KIT, keep=frozenset(TODO_BY_ID)))  # leftovers that hold the solutions
