@@ -4,7 +4,7 @@ The facts are written once: points per TODO and per check in the TODO table
 (``hwlib/machinery/todos.py``), the episode cap, the convergence deadline and the other settings in
 ``hwlib/settings.py``. This tool derives from them every place that states one in words: the
 notebooks' Todo headings ("(10 pts)") and rubric tables, the points table of ``docs/grading.md``, the
-totals in the README and docs, the settings' own docstring table, and the prose that names the
+totals in the README and docs, the settings' tables (``settings.py``, ``policy_search.py``), and the prose that names the
 episode cap or the deadline. ``--check`` changes nothing and exits 1 (listing the files) where a
 file is not what the facts give. Notebooks' stored outputs are not touched: when a fact changes
 what a cell prints, re-store the notebook executed (docs/development.md).
@@ -124,7 +124,7 @@ def _grading_table(text, facts):
 
 
 def _settings_table(text, facts):
-    """The value column of ``hwlib/settings.py``'s docstring table, for the settings that are one number."""
+    """The value column of a docstring table of settings, for the settings that are one number."""
     def row(m):
         value = getattr(facts.settings, m[2], None)
         if m[2] == "LEARNING_RATE" or isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -147,7 +147,7 @@ def rewrite(relative, text, facts):
         return json.dumps(notebook, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
     if relative == "docs/grading.md":
         text = _grading_table(text, facts)
-    if relative == "hwlib/settings.py":
+    if relative in ("hwlib/settings.py", "hwlib/policy_search.py"):
         text = _settings_table(text, facts)
     return _prose(text, facts)
 

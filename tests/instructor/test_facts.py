@@ -86,7 +86,8 @@ def test_numbers_said_next_to_a_setting_are_the_setting():
              if name.isupper() and isinstance(value, (int, float)) and name != "LEARNING_RATE"}
     wrong, seen = [], 0
     sources = [(relative, _prose(KIT, relative)) for relative in DOCS + list(facts_tool.NOTEBOOKS)]
-    sources.append(("hwlib/settings.py", (KIT / "hwlib/settings.py").read_text(encoding="utf-8").split('"""')[1]))
+    for relative in ("hwlib/settings.py", "hwlib/policy_search.py"):  # their docstrings' tables
+        sources.append((relative, (KIT / relative).read_text(encoding="utf-8").split('"""')[1]))
     for relative, text in sources:
         for name, value in names.items():
             for said in re.findall(rf"`+{name}`+(?: +\| +| = | \()(\d[\d_.e+-]*)|(\d[\d_.e+-]*) \(`+{name}`+\)", text):
