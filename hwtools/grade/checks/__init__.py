@@ -6,10 +6,12 @@ To read or change the checks of one TODO, open its problem's module and go to it
 * ``p2_logreg.py``: 2.1.1, 2.2.1, 2.2.2, 2.2.3, 2.3.1.
 
 A section holds the TODO's input makers, judges and tolerances and, last, its behaviours
-(``behaviour.Behaviour``: key, points, what is checked in words, the probe the worker runs, the
+(``behaviour.Behaviour``: key, what is checked in words, the probe the worker runs, the
 maker and the judge). The probes themselves run in the sandbox (``in_sandbox/probes.py``, under
 the same names); how an answer is compared and shown is ``verdicts.py``; the hidden inputs come
-from ``instructor/hidden_checks``; a TODO's total points from ``hwtools/todos.py``.
+from ``instructor/hidden_checks``; each behaviour's points and a TODO's total from the TODO table
+(``Todo.checks``, ``Todo.auto`` in ``hwlib/machinery/todos.py``, through ``hwtools/todos.py``),
+which must agree (``points_table_problems``: the grader refuses to start otherwise).
 
 A behaviour earns its points only when every one of its inputs passes, visible and hidden, so an
 answer written for the visible inputs earns nothing. Two kinds of judging:

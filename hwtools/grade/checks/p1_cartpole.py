@@ -2,9 +2,9 @@
 
 Each TODO's section holds everything its points ride on: how its visible inputs are made (the
 hidden ones come from the same makers with the instructor's seed, ``instructor/hidden_checks``),
-its judges and tolerances, and last its behaviours (``TODO_1_2_1``: key, points, what is checked in
-words, the probe that runs in the sandbox, the maker and the judge), with the line a failing
-visible check prints to rebuild its input (``REBUILT``). A probe's code is in
+its judges and tolerances, and last its behaviours (``TODO_1_2_1``: key, what is checked in words
+(its points: the TODO table's ``checks``), the probe that runs in the sandbox, the maker and the
+judge), with the line a failing visible check prints to rebuild its input (``REBUILT``). A probe's code is in
 ``hwtools/grade/in_sandbox/probes.py`` under the same name. The 1.3.x judges read only the
 grader's own records of the episodes and evaluations it answered (``broker.py``, ``episodes.py``),
 never what the student's process says about them. Standard library and numpy only.

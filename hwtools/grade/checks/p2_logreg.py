@@ -2,9 +2,9 @@
 
 Each TODO's section holds everything its points ride on: how its visible inputs are made (the
 hidden ones come from the same makers with the instructor's seed, ``instructor/hidden_checks``),
-its tolerances, and last its behaviours (``TODO_2_2_1``: key, points, what is checked in words,
-the probe that runs in the sandbox, the maker and the judge), with the line a failing visible
-check prints to rebuild its input (``REBUILT``). A probe's code is in
+its tolerances, and last its behaviours (``TODO_2_2_1``: key, what is checked in words (its
+points: the TODO table's ``checks``), the probe that runs in the sandbox, the maker and the
+judge), with the line a failing visible check prints to rebuild its input (``REBUILT``). A probe's code is in
 ``hwtools/grade/in_sandbox/probes.py`` under the same name. Every problem-2 check is exact: the
 student's values against the reference's on the same input (``verdicts.exact``). Standard library
 and numpy only.
