@@ -78,6 +78,23 @@ def _prose(text, facts):
                           ("for instance ", " on every one"), ("policies at ", ""), ("reaches ", " within"),
                           (r"``settings.MAX_EPISODE_STEPS`` \(", r"\)")]:
         rules.append((rf"(?<![\w.])({before})\d+({after})(?!\d)", lambda m: f"{m[1]}{cap}{m[2]}"))
+    settings = facts.settings
+    grid, episodes = settings.LANDSCAPE_GRID_SIZE, settings.LANDSCAPE_NUM_EPISODES
+    for value, contexts in [
+        (settings.NUM_RANDOM_POLICIES, [("Draw ", " parameter vectors"), ("histogram of the ", " rewards"),
+                                        ("histogram of ", " rewards"), ("the ", r"\s+random policies"),
+                                        ('Todo\\("1\\.1\\.3", "', " random policies")]),
+        (settings.NUM_ROLLOUTS, [(r"scored on the \*same\* ", " start states"), (r"\*\*", r" episodes per evaluation\."),
+                                 ("each iteration on ", " fresh episodes")]),
+        (settings.FD_STEP, [(r"step, \$h = ", r"\$"), (r"uses \$h = ", r"\$")]),
+        (episodes, [(r"\], ", " episodes, seed"), ("mean reward of ", " episodes"), (r"plays the \*same\* ", " start states"), ("on ", " fixed ones")]),
+        (grid, [("The ", " × "), ("× ", " cells"), (r"\), ", " x "), ("x ", r" over \[")]),
+        (f"{grid * grid * episodes:,}", [(r"\(", r" episodes\)"), ("Each redraw plays ", " episodes")]),
+    ]:
+        for before, after in contexts:
+            edge = r"(?<![\w.,])" if before[:1].isalpha() else ""  # "the 1000", not "othe 1000"
+            rules.append((rf"{edge}({before})\d[\d,]*(?:\.\d+)?({after})", lambda m, value=value: f"{m[1]}{value:g}{m[2]}"
+                          if isinstance(value, (int, float)) else f"{m[1]}{value}{m[2]}"))
     for pattern, make in rules:
         text = re.sub(pattern, make, text)
     return text

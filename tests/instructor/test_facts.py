@@ -29,17 +29,22 @@ def _prose(kit, relative):
 
 
 def _variant(tmp_path):
-    """A copy of the kit's texts and facts with other facts: the episode cap 317, the deadline 6
-    iterations, 1.2.1 worth 13 (its equation-3 check 10), written into the one place only."""
+    """A copy of the kit's texts and facts with other facts, written into the one place only: the
+    episode cap 317, the deadline 6 iterations, 777 random policies, 23 rollouts, h = 0.6, a
+    31 x 31 landscape of 4 episodes a cell, 1.2.1 worth 13 (its equation-3 check 10)."""
     kit = tmp_path / "kit"
     for relative in [*facts_tool.NOTEBOOKS, *facts_tool.TEXTS, *DOCS]:
         (kit / relative).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(KIT / relative, kit / relative)
     settings = kit / "hwlib/settings.py"
     text = settings.read_text(encoding="utf-8")
-    assert "\nMAX_EPISODE_STEPS = 500\n" in text and "\nCONVERGENCE_DEADLINE = 7\n" in text
-    settings.write_text(text.replace("\nMAX_EPISODE_STEPS = 500\n", "\nMAX_EPISODE_STEPS = 317\n")
-                        .replace("\nCONVERGENCE_DEADLINE = 7\n", "\nCONVERGENCE_DEADLINE = 6\n"), encoding="utf-8")
+    for old, new in [("MAX_EPISODE_STEPS = 500", "MAX_EPISODE_STEPS = 317"), ("CONVERGENCE_DEADLINE = 7", "CONVERGENCE_DEADLINE = 6"),
+                     ("NUM_RANDOM_POLICIES = 1000", "NUM_RANDOM_POLICIES = 777"), ("NUM_ROLLOUTS = 20", "NUM_ROLLOUTS = 23"),
+                     ("FD_STEP = 0.5", "FD_STEP = 0.6"), ("LANDSCAPE_GRID_SIZE = 41", "LANDSCAPE_GRID_SIZE = 31"),
+                     ("LANDSCAPE_NUM_EPISODES = 5", "LANDSCAPE_NUM_EPISODES = 4")]:
+        assert f"\n{old}\n" in text, old
+        text = text.replace(f"\n{old}\n", f"\n{new}\n")
+    settings.write_text(text, encoding="utf-8")
     table = kit / "hwlib/machinery/todos.py"
     text = table.read_text(encoding="utf-8")
     assert 'eq. (3)", 10,' in text and '("equation-3", 7)' in text
@@ -65,7 +70,8 @@ def test_a_changed_fact_reaches_every_place_that_states_it(tmp_path):
     for relative in DOCS + list(facts_tool.NOTEBOOKS) + ["hwlib/settings.py"]:
         for line in _prose(kit, relative).splitlines():
             # The old cap, the old deadline, the old totals: none may be left where a fact is stated.
-            if re.search(r"(?<![\d.±+-])500(?![\d.])|within 7 iterations|\b39\b|\(10 pts\)|problem 1, 30 points", line):
+            if re.search(r"(?<![\d.±+-])500(?![\d.])|within 7 iterations|\b39\b|\(10 pts\)|problem 1, 30 points|\b1000 (rew|par|\s*ran)"
+                         r"|\b20 (start states|episodes per|fresh)|h = 0\.5|\b41 ×|× 41|8,405|\b5 (episodes|start|fixed)", line):
                 if "2.1.1" not in line and "gymnasium registers CartPole-v1 with 500" not in line:
                     stale.append(f"{relative}: {line.strip()[:150]}")
     assert not stale, "stated but not derived from the one place:\n" + "\n".join(stale)
@@ -73,6 +79,9 @@ def test_a_changed_fact_reaches_every_place_that_states_it(tmp_path):
     assert "### 1.2.1 Todo: implement `scalar_finite_diff` (13 pts)" in notebook
     assert "## Rubric (problem 1, 33 points)" in notebook and "| 1.2.1 finite differences | 13 | automatically |" in notebook
     assert "the best possible total reward is **317**" in notebook and "converges within 6 iterations" in notebook
+    for said in ("Draw 777 parameter vectors", "*same* 23 start states", "**23 episodes per evaluation.**", "$h = 0.6$",
+                 "The 31 × 31 cells", "(3,844 episodes)", "mean reward of 4 episodes", "on 23 fresh episodes, the picture on 4"):
+        assert said in notebook, said
     grading = _prose(kit, "docs/grading.md")
     assert "42 points are automatic, 21 are graded by hand" in grading
     assert "| 1.2.1 finite differences | 13 | 10: eq. (3)" in grading and "(42/42" in _prose(kit, "README.md")
