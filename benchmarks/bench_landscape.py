@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from hwlib.cartpole import CartPoleLinearPolicy, make_env, run_policy
+from hwlib.cartpole import MAX_EPISODE_REWARD, CartPoleLinearPolicy, make_env, run_policy
 from hwlib.machinery.episodes import run_episodes
 from hwlib.landscape import GRID_SIZE, NUM_EPISODES, render_landscape, reward_slice
 from hwlib.plots.landscape import new_landscape_figure
@@ -31,7 +31,7 @@ def first_balancing_theta(seed=0, num_candidates=400):
     """A θ that balances on seeds 0-4, found by seeded random search (the kit ships none: that is 1.1.2)."""
     candidates = np.random.default_rng(seed).uniform(-1.0, 1.0, size=(num_candidates, 4))
     rewards = run_episodes(np.repeat(candidates, 5, axis=0), np.tile(np.arange(5), num_candidates)).reshape(-1, 5)
-    return candidates[np.flatnonzero(np.all(rewards == 500, axis=1))[0]]
+    return candidates[np.flatnonzero(np.all(rewards == MAX_EPISODE_REWARD, axis=1))[0]]
 
 
 # Two slices of different cost: through a balancing θ (a large plateau of 500-step episodes) and
@@ -65,9 +65,9 @@ def bench_slice(name, theta, grid_size, repeats, loop_cells):
     seconds = sorted(run_time for _, run_time in runs)
     num_cells = grid_size**2
     num_episodes = num_cells * landscape.num_episodes
-    at_max = np.mean(landscape.mean_rewards == 500)
+    at_max = np.mean(landscape.mean_rewards == MAX_EPISODE_REWARD)
     print(f"slice {name}: {grid_size} x {grid_size} x {landscape.num_episodes} = {num_episodes:,} episodes "
-          f"({at_max:.0%} of the cells at 500): batched median {np.median(seconds):.2f} s, "
+          f"({at_max:.0%} of the cells at {MAX_EPISODE_REWARD}): batched median {np.median(seconds):.2f} s, "
           f"best {seconds[0]:.2f} s, worst {seconds[-1]:.2f} s over {repeats} runs (target <= 2 s)")
 
     all_params = landscape.cell_params()

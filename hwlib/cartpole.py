@@ -8,7 +8,7 @@ The environment is gymnasium's ``CartPole-v1``; the homework only talks to it th
 | observation space  | ``Box(4,)``: cart position, cart velocity, pole angle, pole angular velocity |
 | action space       | ``Discrete(2)``: 0 pushes the cart left, 1 pushes it right         |
 | reward             | +1 for every step, the last one included                           |
-| episode end        | pole angle beyond +-12 degrees (0.2095 rad) or cart beyond +-2.4: terminated; 500 steps: truncated |
+| episode end        | pole angle beyond +-12 degrees (0.2095 rad) or cart beyond +-2.4: terminated; ``settings.MAX_EPISODE_STEPS`` (500) steps: truncated |
 | start state        | each of the 4 components uniform in [-0.05, 0.05], drawn by ``reset(seed=...)`` |
 
 The policy of the handout's equation (1) is linear: action 1 when ``params @ obs < 0``, else 0.
@@ -20,17 +20,17 @@ and all the homework's code ever calls. ``random_policy_rewards`` is handout 1.1
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import gymnasium as gym
 import numpy as np
 
+from hwlib.settings import MAX_EPISODE_STEPS as MAX_EPISODE_REWARD  # +1 per step: the cap is the best reward
 from hwlib.machinery.todos import TodoNotDone  # noqa: F401 - the TODO's starting code raises it until you write it
 from hwlib.machinery.validation import check_count, check_params, check_policy, check_seed
 
 ENV_ID = "CartPole-v1"
 NUM_OBSERVATIONS = 4
-MAX_EPISODE_REWARD = 500
 SEED_BOUND = 2**31 - 1  # episode seeds are drawn from [0, SEED_BOUND)
 OBSERVATION_NAMES = ("cart position", "cart velocity", "pole angle", "pole angular velocity")
 X_THRESHOLD = 2.4
@@ -58,6 +58,17 @@ class CartPoleLinearPolicy:
 
     def __repr__(self):
         return f"CartPoleLinearPolicy(params={np.round(self.params, 4).tolist()})"
+
+
+def _register_episode_cap():
+    """Make every ``gym.make(ENV_ID)`` (the kit's, a student's own, the grader's) end episodes after
+    ``settings.MAX_EPISODE_STEPS`` steps: gymnasium's registration of ``CartPole-v1`` with that cap."""
+    spec = gym.spec(ENV_ID)
+    if spec.max_episode_steps != MAX_EPISODE_REWARD:
+        gym.envs.registration.registry[ENV_ID] = replace(spec, max_episode_steps=MAX_EPISODE_REWARD)
+
+
+_register_episode_cap()
 
 
 def make_env(render_mode=None):

@@ -5,7 +5,7 @@ values of a given θ. Every cell of the grid is scored by the mean total reward 
 episodes (the same start states for every cell, drawn from one seed), so neighbouring cells
 differ only because their policies act differently, never because their episodes started
 elsewhere. Every cell plays your ``CartPoleLinearPolicy`` (TODO 1.1.1): the kit plays all cells in
-one batch of gymnasium's vectorised CartPole where your ``__call__`` gives the actions of equation
+one batch (the kit's NumPy port of CartPole's step) where your ``__call__`` gives the actions of equation
 (1), and the others step by step with it (``hwlib/machinery/episodes.py``); ``batched=False`` plays
 them all one by one, with the same rewards.
 

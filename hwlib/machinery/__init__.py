@@ -9,7 +9,7 @@ homework itself is in the files one folder up.
 | ``validation``    | the checks every public function of ``hwlib`` makes at its door              |
 | ``batch``         | runs your training code with the episodes it asks for played together (``Session``) |
 | ``replay``        | record, then replay: how a run learns which episodes a call of your code asks for |
-| ``episodes``      | plays many CartPole episodes at once (gymnasium's vectorised step), checked against your policy's ``__call__`` |
+| ``episodes``      | plays many CartPole episodes at once (the kit's NumPy port of CartPole's step), checked against your policy's ``__call__`` |
 | ``progress``      | the progress bar of the long cells                                           |
 | ``latest_only``   | redraw only the latest: the slider panel's and the landscape's redraws        |
 | ``panel_controls``| the slider panel's small front-end part (``panel_controls.js``)               |

@@ -1,7 +1,7 @@
 """How the kit plays many CartPole episodes at once.
 
 ``play_batch(params, seeds)`` plays one episode per row of ``params``, all at once, with the
-step of gymnasium's vectorised CartPole (``play``): each episode starts exactly where
+kit's own NumPy port of gymnasium's vectorised CartPole step (``play``): each episode starts exactly where
 ``reset(seed=...)`` puts a single environment (the start state is read from a single environment)
 and moves by the vector environment's equations, so the rewards are those of the one-by-one loop.
 
@@ -79,7 +79,7 @@ def batch_actions(params, observations):
 def play_batch(params, seeds=None, starts=None):
     """Total reward of one episode of equation (1) per row of ``params`` (float64, (K, 4)) from
     ``reset(seed=seeds[k])`` (int64, (K,)), or from the start state ``starts[k]`` (float64 (K, 4)),
-    all played at once with gymnasium's vectorised step (``play``). The caller has checked them."""
+    all played at once with the kit's port of the vectorised step (``play``). The caller has checked them."""
     starts = start_states(seeds) if starts is None else starts
     return play(params, starts, constants())
 
@@ -94,8 +94,8 @@ def play(params, starts, c):
     """Total reward of one episode of equation (1) per row of ``params`` (float64 (K, 4)) from the
     start state ``starts[k]`` (float64 (K, 4)); ``c`` holds CartPole's ``CONSTANTS``.
 
-    The step is gymnasium's own vectorised CartPole step (``CartPoleVectorEnv.step``: the same
-    equations, constants and order of operations), without its per-step checks and auto-reset,
+    The step is the kit's NumPy port of gymnasium's vectorised CartPole step
+    (``CartPoleVectorEnv.step``: the same equations, constants and order of operations), without its per-step checks and auto-reset,
     and in place: the rewards are those of ``env.step``, bit for bit (``tests/unit/test_cartpole.py``
     compares it with gymnasium's vector environment and with the one-by-one loop). An episode
     that has ended is still stepped (its reward is kept) until a quarter of those stepped have

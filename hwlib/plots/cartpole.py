@@ -24,7 +24,7 @@ CART_WIDTH, CART_HEIGHT = 0.5, 0.3
 POLE_LENGTH = 1.0  # gymnasium's pole is 2 x 0.5 long
 TRACK_LIMIT = X_THRESHOLD + 0.6
 MIN_TIME_SPAN = 10  # the time axes show at least this many steps
-STEP_LIMIT_GID = "step-limit"  # the id of the artists that mark the 500-step limit
+STEP_LIMIT_GID = "step-limit"  # the id of the artists that mark the step limit (MAX_EPISODE_REWARD steps)
 PNG_COMPRESS_LEVEL = 1  # zlib level of the panel's frames: 8 ms instead of 40 ms a frame, ~10% larger
 
 
@@ -44,7 +44,7 @@ class CartPoleDrawing:
         self.cart = ax.add_patch(Rectangle((0, 0), CART_WIDTH, CART_HEIGHT, color="0.25"))
         (self.pole,) = ax.plot([], [], color="tab:orange", lw=6, solid_capstyle="round")
         self.axle = ax.add_patch(Circle((0, 0), 0.04, color="tab:blue", zorder=3))
-        self.caption = ax.set_title("step 0 of 500")  # a placeholder, so the layout leaves room for it
+        self.caption = ax.set_title(f"step 0 of {MAX_EPISODE_REWARD}")  # a placeholder, so the layout leaves room for it
 
     @property
     def moving_artists(self):
@@ -79,7 +79,7 @@ class EpisodeView:
     keeps the slider panel quick.
 
     The time axes span the episode (at least ``MIN_TIME_SPAN`` steps), so an 8-step failure fills
-    the plot as a 500-step run does; the 500-step limit is marked only when the episode reaches it.
+    the plot as a run to the step limit does; that limit is marked only when the episode reaches it.
     The pole angle is in radians, the unit of the observation (and of the slider panel's θ₃
     label), with degrees on the right-hand axis. The figure is opaque white, so a PNG of it is
     never transparent (whatever the notebook's backend).

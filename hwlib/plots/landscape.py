@@ -30,7 +30,7 @@ def new_landscape_figure():
 
 
 def plot_reward_landscape(landscape, path=None, fd_step=None, figure=None):
-    """The slice ``landscape`` (an ``hwlib.landscape.RewardSlice``) as a heatmap with a 0-500 colour bar.
+    """The slice ``landscape`` (an ``hwlib.landscape.RewardSlice``) as a heatmap with a colour bar from 0 to the maximum reward.
 
     The slice's θ is marked with a star. ``path`` (shape (T + 1, 4), e.g. the parameters before
     training and after each update) is drawn projected onto the slice: one dot per iteration,

@@ -62,7 +62,7 @@ def plot_reward_histogram(rewards):
 
 def plot_training_curve(rewards, learning_rate=None, deadline=settings.CONVERGENCE_DEADLINE):
     """Reward after each training iteration (iteration 0 is before any update), with the maximum, the
-    convergence deadline and the iteration the run converged at (reward 500 from then on) marked."""
+    convergence deadline and the iteration the run converged at (the maximum reward from then on) marked."""
     rewards = _check_rewards(rewards, "rewards")
     iterations = np.arange(len(rewards))
     converged_at = iterations_to_converge(rewards)

@@ -16,7 +16,7 @@ The result is a JSON-serialisable dict:
 
 * ``isolated`` (bool) and ``isolation`` (how, or why not); ``one_mistake_one_place`` (graded
   against the reference: True; against an answer key: False);
-* ``total``: ``auto_earned``, ``auto_possible`` (39), ``manual_possible`` (21);
+* ``total``: ``auto_earned``, ``auto_possible`` (``AUTO_POINTS``), ``manual_possible`` (``MANUAL_POINTS``);
 * ``todos``: one entry per TODO with ``id``, ``title``, ``auto_earned``, ``auto_possible``,
   ``manual_possible``, ``manual`` (what a person grades), ``status`` (graded, not graded, time
   limit, crashed, graded by hand), ``checks`` (what was checked, in words, its points, passed,

@@ -137,6 +137,9 @@ class Grader:
             self.layout = self.reference_bodies = self.hidden = None
             self.wrong_solutions = []
         self.cases = {todo: checks.case_set(todo, self.hidden) for todo in checks.GRADED_TODOS}
+        problems = checks.points_table_problems(self.cases)
+        if problems:
+            raise GradingError("the points table disagrees with itself:\n  " + "\n  ".join(problems))
         if self.key is not None:
             try:
                 keys.check_matches(self.key, self.cases)

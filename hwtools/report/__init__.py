@@ -6,7 +6,7 @@ Writes into OUT_DIR (created if needed):
 |----------------------------------------------|--------------------------------------------------------------|
 | ``p1_cartpole_finite_difference.html``       | problem 1's notebook, executed from a fresh kernel           |
 | ``p2_food_cutting_logistic_regression.html`` | problem 2's notebook, likewise                               |
-| ``p1_random_policy_histogram.png``           | 1.1.3: rewards of the random policies, the share at 500 marked |
+| ``p1_random_policy_histogram.png``           | 1.1.3: rewards of the random policies, the share at the maximum marked |
 | ``p1_training_curve.png``                    | 1.3.3: reward per training iteration                         |
 | ``p1_learning_rate_sweep.png``               | 1.3.3: share of seeds converging within 7 iterations, per rate |
 | ``p2_training_curve.png``                    | 2.3.2: training accuracy per iteration                       |

@@ -212,7 +212,7 @@ def answers_markdown(answers, name=None):
         "",
         "### 1.1.3 Random policies",
         "",
-        f"- {text['num_at_max']} of {text['num_policies']} random policies reached the maximum reward of 500:"
+        f"- {text['num_at_max']} of {text['num_policies']} random policies reached the maximum reward of {MAX_EPISODE_REWARD}:"
         f" **{text['share_at_max']}**",
         f"- median reward: {text['median_reward']}",
         "",
@@ -222,7 +222,7 @@ def answers_markdown(answers, name=None):
         "",
         f"- learning rate: **{text['learning_rate']}**",
         f"- final parameters: **{text['final_params']}**",
-        f"- converged (500 from then on) at iteration: **{text['converged_at']}** {text['converged_note']}",
+        f"- converged ({MAX_EPISODE_REWARD} from then on) at iteration: **{text['converged_at']}** {text['converged_note']}",
         f"- reward per iteration: {text['rewards']}",
         "",
         f"Iteration 0 is before the first update; each reward is the mean of {text['num_rollouts']} episodes.",

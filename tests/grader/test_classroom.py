@@ -35,6 +35,7 @@ import editions
 import test_grading as proof  # the grader's proof builds the wrong solutions and cheats
 
 KIT = Path(__file__).resolve().parents[2]
+TOTAL_COLUMN = f"auto total (/{AUTO_POINTS:g})"  # the gradebook's total column
 
 TIME_LIMIT = 5.0  # per TODO's run: twice what the whole reference kit takes; the endless loop costs it once
 JOBS = 2
@@ -209,7 +210,7 @@ def test_every_gradebook_cell_is_the_expected_one(a_class, first_run):
     assert header == gradebook_header()
     assert header[:2] == ["student", "status"] and header[-1] == "notes"
     assert [auto_column(todo) for todo in AUTO_TODOS] == header[2:2 + len(AUTO_TODOS)]
-    assert header[2 + len(AUTO_TODOS)] == f"auto total (/{AUTO_POINTS:g})" == "auto total (/39)"
+    assert header[2 + len(AUTO_TODOS)] == TOTAL_COLUMN
     manual = [column for column in header if " by hand: " in column]
     assert manual == [f"{todo.id} by hand: {todo.manual_what if todo.auto else todo.title} (/{todo.manual:g})"
                       for todo in TODOS if todo.manual]
@@ -220,7 +221,7 @@ def test_every_gradebook_cell_is_the_expected_one(a_class, first_run):
         assert row["status"] == status, (student, row)
         for todo in AUTO_TODOS:
             assert float(row[auto_column(todo)]) == points[todo], (student, todo, row)
-        assert float(row["auto total (/39)"]) == pytest.approx(sum(points.values())), student
+        assert float(row[TOTAL_COLUMN]) == pytest.approx(sum(points.values())), student
         assert all(row[column] == "" for column in manual), "manual points are left for the TA"
     assert rows["cheat-endless_loop"]["notes"] == "2.2.1 time limit"
     assert report.graded_now + report.reused + report.not_graded == len(a_class.expected)
@@ -232,7 +233,7 @@ def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class,
     feedback = {path.stem: path.read_text(encoding="utf-8") for path in (out / "feedback").glob("*.md")}
     assert set(feedback) == set(a_class.expected)
     wrong = feedback["wrong-forward_difference"]
-    assert "Automatic points: **29 of 39**" in wrong and "## 1.2.1 central finite differences" in wrong
+    assert f"Automatic points: **{AUTO_POINTS - TODO_BY_ID['1.2.1'].auto:g} of {AUTO_POINTS:g}**" in wrong and "## 1.2.1 central finite differences" in wrong
     assert "First failing check:" in wrong and "expected:" in wrong and "actual:" in wrong
     assert "rejected: a path that leaves the submission" in feedback["traversal"]
     assert "Nothing of this submission was run" in feedback["huge"]
@@ -613,7 +614,7 @@ def test_odd_ids_long_ids_and_a_block_too_deep_to_compile_each_get_their_own_row
     assert sorted(order) == sorted(["deep", "Ana María", "Ana_Mar_a-8358ed27", long_id])
     assert rows["Ana María"]["status"] == "empty" and rows[long_id]["status"] == "empty"
     assert rows["Ana_Mar_a-8358ed27"]["status"].startswith("unreadable")
-    assert rows["deep"]["status"] == graded(grader) and float(rows["deep"]["auto total (/39)"]) == AUTO_POINTS - 2
+    assert rows["deep"]["status"] == graded(grader) and float(rows["deep"][TOTAL_COLUMN]) == AUTO_POINTS - 2
     assert not report.errors, report.errors
     written = {path.name: path.read_text(encoding="utf-8") for path in (tmp_path / "feedback").glob("*.md")}
     assert len(written) == 4 and all(len(name) <= 123 for name in written)

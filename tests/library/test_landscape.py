@@ -8,7 +8,7 @@ from matplotlib.figure import Figure
 
 from hwlib import CartPoleLinearPolicy, run_policy
 from hwlib import landscape as landscape_module
-from hwlib.cartpole import episode_seeds, make_env
+from hwlib.cartpole import MAX_EPISODE_REWARD, episode_seeds, make_env
 from hwlib.machinery.episodes import run_episodes
 from hwlib.landscape import (
     AXIS_LABELS,
@@ -40,9 +40,9 @@ def test_default_slice_is_41_by_41_over_minus_2_to_2_with_5_shared_episodes(defa
     assert default_slice.mean_rewards.shape == (41, 41)
     np.testing.assert_array_equal(default_slice.seeds, episode_seeds(5, 0))
     assert default_slice.num_episodes == 5
-    assert np.all((default_slice.mean_rewards >= 1) & (default_slice.mean_rewards <= 500))
+    assert np.all((default_slice.mean_rewards >= 1) & (default_slice.mean_rewards <= MAX_EPISODE_REWARD))
     # A landscape worth looking at: plateaus at the maximum and cells that fail fast.
-    assert np.any(default_slice.mean_rewards == 500) and np.any(default_slice.mean_rewards < 20)
+    assert np.any(default_slice.mean_rewards == MAX_EPISODE_REWARD) and np.any(default_slice.mean_rewards < 20)
 
 
 def test_cells_hold_the_other_coordinates_and_vary_the_chosen_ones(default_slice):
@@ -180,12 +180,12 @@ def test_figure_shows_the_slice_with_a_fixed_colour_bar_named_axes_and_the_held_
     assert isinstance(figure, Figure)
     ax, colour_bar_ax = figure.axes
     (image,) = ax.get_images()
-    assert image.get_clim() == (0, 500)
+    assert image.get_clim() == (0, MAX_EPISODE_REWARD)
     np.testing.assert_array_equal(image.get_array(), default_slice.mean_rewards)
     assert ax.get_xlabel() == "θ₃ · pole angle" == AXIS_LABELS[2]
     assert ax.get_ylabel() == "θ₄ · pole angular velocity"
     assert "θ₁ = 0.30" in ax.get_title() and "θ₂ = -0.60" in ax.get_title()
-    assert colour_bar_ax.get_ylim() == (0, 500)
+    assert colour_bar_ax.get_ylim() == (0, MAX_EPISODE_REWARD)
     (theta_marker,) = ax.get_lines()
     assert (theta_marker.get_xdata()[0], theta_marker.get_ydata()[0]) == (-1.1, -0.7)
     assert _labels(ax) == []

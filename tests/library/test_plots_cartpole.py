@@ -31,11 +31,11 @@ def test_episode_figure_draws_the_thresholds_and_the_cart_where_it_is(balancing_
     assert degrees.get_ylabel() == "[°]"
     cart = drawing_ax.patches[0]
     assert cart.get_x() + cart.get_width() / 2 == np.float64(episode.states[10, 0])
-    assert drawing_ax.get_title() == "step 10 of 500"
+    assert drawing_ax.get_title() == f"step 10 of {MAX_EPISODE_REWARD}"
 
 
 def _limit_marks_visible(ax):
-    """Whether the line and the label that mark the 500-step limit are shown."""
+    """Whether the line and the label that mark the step limit are shown."""
     marks = [artist for artist in (*ax.get_lines(), *ax.texts) if artist.get_gid() == STEP_LIMIT_GID]
     assert [type(mark) for mark in marks] == [Line2D, Text]
     assert tuple(marks[0].get_xdata()) == (MAX_EPISODE_REWARD, MAX_EPISODE_REWARD)
@@ -52,7 +52,7 @@ def test_time_axes_fit_a_short_failure_and_hide_the_500_limit():
         left, right = ax.get_xlim()
         assert left == 0 and episode.num_steps <= right <= 1.1 * max(episode.num_steps, 10), "the failure should fill the plot"
         marks = _limit_marks_visible(ax)
-        assert len(marks) == 2 and not any(marks), "the 500-step limit is marked only when the episode reaches it"
+        assert len(marks) == 2 and not any(marks), "the step limit is marked only when the episode reaches it"
         assert all(float(tick).is_integer() for tick in ax.get_xticks())
     assert drawing_ax.get_title() == f"step {episode.num_steps} of {episode.num_steps}: the pole fell past ±0.21 rad = ±12°"
 
@@ -66,7 +66,7 @@ def test_time_axes_show_the_500_limit_when_reached_and_refit_when_reused(balanci
     assert long.num_steps == MAX_EPISODE_REWARD
     assert MAX_EPISODE_REWARD < view.position_ax.get_xlim()[1] <= 1.1 * MAX_EPISODE_REWARD
     assert _limit_marks_visible(view.position_ax) == [True, True] and _limit_marks_visible(view.angle_ax) == [True, True]
-    assert view.drawing.ax.get_title() == "step 500 of 500: reached the 500-step limit"
+    assert view.drawing.ax.get_title() == f"step {MAX_EPISODE_REWARD} of {MAX_EPISODE_REWARD}: reached the {MAX_EPISODE_REWARD}-step limit"
     view.show(short, step=0)
     assert view.angle_ax.get_xlim()[1] <= 1.1 * max(short.num_steps, 10)
     assert not any(_limit_marks_visible(view.position_ax))

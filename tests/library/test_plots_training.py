@@ -15,6 +15,8 @@ from hwlib.plots.food import plot_confusion_matrix, plot_per_class_accuracy, plo
 from hwlib.plots.training import PRINT_WIDTH
 from hwlib.training import SweepResult
 
+TOP = float(settings.MAX_EPISODE_STEPS)  # the best reward
+
 
 def _line_ydata(ax):
     return [tuple(np.round(line.get_ydata(), 6)) for line in ax.get_lines()]
@@ -51,7 +53,7 @@ def _integer_ticks(ax):
 
 
 def _sweep():
-    rewards = np.full((2, 3, 9), 500.0)
+    rewards = np.full((2, 3, 9), TOP)
     rewards[0, :, :] = 10.0
     return SweepResult(np.array([1e-4, 1e-3]), np.arange(3), rewards, 7)
 
@@ -60,23 +62,23 @@ def _sweep():
 
 
 def test_histogram_counts_every_policy():
-    rewards = np.array([9, 10, 500, 500, 250])
+    rewards = np.array([9, 10, TOP, TOP, TOP / 2])
     ax = plot_reward_histogram(rewards).axes[0]
     assert sum(patch.get_height() for patch in ax.patches) == len(rewards)
 
 
-def test_histogram_marks_the_share_that_reached_500():
-    rewards = np.concatenate([np.full(977, 12.0), np.full(23, 500.0)])
+def test_histogram_marks_the_share_that_reached_the_maximum():
+    rewards = np.concatenate([np.full(977, 12.0), np.full(23, TOP)])
     figure = plot_reward_histogram(rewards)
-    assert "reward 500: 23 of 1000 (2.3%)" in _texts(figure)
+    assert f"reward {TOP:g}: 23 of 1000 (2.3%)" in _texts(figure)
     ax = figure.axes[0]
-    bar_at_500 = [patch for patch in ax.patches if patch.get_x() == 500]
-    assert len(bar_at_500) == 1 and bar_at_500[0].get_height() == 23
+    bar_at_top = [patch for patch in ax.patches if patch.get_x() == TOP]
+    assert len(bar_at_top) == 1 and bar_at_top[0].get_height() == 23
     assert figure.get_figwidth() == PRINT_WIDTH
 
 
 def test_histogram_rejects_rewards_that_are_not_episode_rewards():
-    for bad in ([], [[1.0]], [10.0, np.nan], [600.0], [-1.0]):
+    for bad in ([], [[1.0]], [10.0, np.nan], [TOP + 100], [-1.0]):
         with pytest.raises(ValueError, match="rewards"):
             plot_reward_histogram(bad)
 
@@ -84,18 +86,18 @@ def test_histogram_rejects_rewards_that_are_not_episode_rewards():
 # --- the training curve ------------------------------------------------------------------------
 
 
-def test_training_curve_draws_rewards_and_the_500_line():
-    figure = plot_training_curve([10, 200, 500, 500], learning_rate=0.002)
+def test_training_curve_draws_rewards_and_the_maximum_line():
+    figure = plot_training_curve([10, 100, TOP, TOP], learning_rate=0.002)
     ax = figure.axes[0]
     assert isinstance(figure, Figure)
-    assert (10.0, 200.0, 500.0, 500.0) in _line_ydata(ax)
-    assert (500.0, 500.0) in _line_ydata(ax)
+    assert (10.0, 100.0, TOP, TOP) in _line_ydata(ax)
+    assert (TOP, TOP) in _line_ydata(ax)
     assert ax.get_xlabel() == "training iteration" and ax.get_ylabel() == "reward"
     assert "0.002" in ax.get_title()
 
 
 def test_training_curve_marks_the_deadline_and_the_convergence_iteration_on_whole_number_ticks():
-    rewards = [9, 136, 403, 417, 472, 500, 500, 500, 500, 500, 500, 500]
+    rewards = [9, 13, 40, 41, 47] + [TOP] * 7
     figure = plot_training_curve(rewards, learning_rate=0.0007)
     ax = figure.axes[0]
     texts = _texts(figure)
@@ -104,13 +106,13 @@ def test_training_curve_marks_the_deadline_and_the_convergence_iteration_on_whol
     deadline = [line for line in ax.get_lines() if line.get_label().startswith("deadline")][0]
     np.testing.assert_array_equal(deadline.get_xdata(), [settings.CONVERGENCE_DEADLINE] * 2)
     marker = [line for line in ax.get_lines() if line.get_label() == "converged at iteration 5"][0]
-    assert (marker.get_xdata()[0], marker.get_ydata()[0]) == (5, 500)
+    assert (marker.get_xdata()[0], marker.get_ydata()[0]) == (5, TOP)
     assert _integer_ticks(ax)
     _legend_clear_of_axes(figure)
 
 
 def test_training_curve_says_when_the_run_did_not_converge():
-    texts = _texts(plot_training_curve([9, 50, 500, 120], deadline=3))
+    texts = _texts(plot_training_curve([9, 50, TOP, TOP - 80], deadline=3))
     assert "not converged within 3 iterations" in texts and "deadline: iteration 3" in texts
 
 

@@ -65,8 +65,8 @@ def shows_state(panel):
 @pytest.mark.todo("1.1.1")
 def test_render_panel_plays_the_episode_and_draws_it(balancing_params):
     frame = render_panel(balancing_params, seed=0)
-    assert frame.episode.total_reward == 500 and frame.step == 500
-    assert frame.reward_text == "Total reward: 500 (the maximum)"
+    assert frame.episode.total_reward == MAX_EPISODE_REWARD and frame.step == MAX_EPISODE_REWARD
+    assert frame.reward_text == f"Total reward: {MAX_EPISODE_REWARD} (the maximum)"
     assert frame.png.startswith(PNG_SIGNATURE) and opaque_share(frame.png) == 1.0
 
 
@@ -83,7 +83,7 @@ def test_render_panel_redraws_the_same_view_differently_for_other_params(balanci
     balanced = render_panel(balancing_params, seed=0, view=view)
     falling = render_panel(ALWAYS_LEFT_PARAMS, seed=0, view=view)
     assert balanced.png != falling.png
-    assert balanced.episode.num_steps == 500 and falling.episode.num_steps < 20
+    assert balanced.episode.num_steps == MAX_EPISODE_REWARD and falling.episode.num_steps < 20
     # The reused view draws what a new one draws.
     assert np.array_equal(pixels(falling.png), pixels(render_panel(ALWAYS_LEFT_PARAMS, seed=0).png))
 
@@ -123,7 +123,7 @@ def test_render_panel_rejects_bad_controls(kwargs, error, message):
 def test_reward_text_says_why_the_episode_ended(balancing_params):
     assert reward_text(simulate_episode(ALWAYS_LEFT_PARAMS, 0)) == "Total reward: 11 (the pole fell past ±0.21 rad = ±12°)"
     assert reward_text(simulate_episode((0.0, 0.0, 0.0, -0.2), 0)) == "Total reward: 142 (the cart ran off the track past ±2.4 m)"
-    assert reward_text(simulate_episode(balancing_params, 0)) == "Total reward: 500 (the maximum)"
+    assert reward_text(simulate_episode(balancing_params, 0)) == f"Total reward: {MAX_EPISODE_REWARD} (the maximum)"
     with pytest.raises(TypeError, match="episode must be"):
         reward_text(500)
 

@@ -30,6 +30,7 @@ from hwtools import report
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 REPORT_TIMEOUT = 900  # seconds; the run takes about a minute on 2 cores
 STUDENT_NAME = "Ada Lovelace / alovelac"
+TOP = float(settings.MAX_EPISODE_STEPS)  # the best episode reward
 
 
 # --- part 1: the pieces, without running the notebooks ---------------------------------------------
@@ -41,7 +42,7 @@ def test_the_export_cell_runs_on_its_own_and_writes_json(tmp_path):
               "short": ("nope",)}
     namespace = {
         "tried": {"mine": (0.1, -0.2, np.float32(-1.0), -0.3)},
-        "run": SimpleNamespace(rewards=np.array([9.5, 500.0]), policy=SimpleNamespace(params=np.zeros(4))),
+        "run": SimpleNamespace(rewards=np.array([9.5, TOP]), policy=SimpleNamespace(params=np.zeros(4))),
         "rate": np.float64(7e-4),
         "where": Path("/data/data.npz"),
         "opaque": object(),
@@ -51,7 +52,7 @@ def test_the_export_cell_runs_on_its_own_and_writes_json(tmp_path):
     exported = json.loads((tmp_path / "values.json").read_text())
     assert exported["values"] == {
         "tried": {"mine": [0.1, -0.2, -1.0, -0.3]},
-        "run": {"rewards": [9.5, 500.0], "policy.params": [0.0, 0.0, 0.0, 0.0]},
+        "run": {"rewards": [9.5, TOP], "policy.params": [0.0, 0.0, 0.0, 0.0]},
         "rate": 7e-4,
         "where": "/data/data.npz",
     }
@@ -73,9 +74,9 @@ def test_a_missing_variable_is_named_with_where_it_is_made(tmp_path):
 def _p1_values(**changes):
     values = {
         "tried": {"my first guess": [0.1, -0.2, -1.0, -0.3], "pole angle only": [0, 0, -1, 0]},
-        "random_rewards": [9.0, 11.0, 500.0, 30.0],
+        "random_rewards": [9.0, 11.0, TOP, 30.0],
         "learning_rate": 0.0007,
-        "run": {"rewards": [9.4, 136.55, 500.0, 500.0], "policy.params": [0.0081, -0.5874, 0.8861, -1.0]},
+        "run": {"rewards": [9.4, 136.55, TOP, TOP], "policy.params": [0.0081, -0.5874, 0.8861, -1.0]},
         "sweep": {"learning_rates": [1e-4, 1e-3], "converged_fraction": [0.0, 0.95], "seeds": list(range(20)), "deadline": 7},
     }
     values.update(changes)
@@ -121,8 +122,8 @@ def test_the_answers_show_the_students_parameters_and_the_notebooks_numbers():
     assert report.rewards_text([9.4, 136.25, 500]) == "9.4, 136.2, 500.0"
     assert f"- reward per iteration: {report.rewards_text(p1.training_rewards)}" in text
     assert "- final parameters: **[0.008, -0.587, 0.886, -1.000]**" in text
-    assert "- converged (500 from then on) at iteration: **2** (deadline 7: met)" in text
-    assert "- 1 of 4 random policies reached the maximum reward of 500: **25.0%**" in text
+    assert f"- converged ({settings.MAX_EPISODE_STEPS} from then on) at iteration: **2** (deadline {settings.CONVERGENCE_DEADLINE}: met)" in text
+    assert f"- 1 of 4 random policies reached the maximum reward of {settings.MAX_EPISODE_STEPS}: **25.0%**" in text
     assert "| converged | 0% | 95% |" in text
     assert "- test accuracy: **0.750**" in text and "- first iteration with train accuracy above 99%: **2**" in text
     assert "$$\\nabla l = X^\\top (y - p)$$" in text
@@ -400,7 +401,8 @@ PRINTED_AS = {
         "median reward": 'print(f"median reward: {np.median(random_rewards):.1f}")',
         "learning rate": 'print(f"learning rate: {learning_rate:g}")',
         "reward per iteration": 'print("reward per iteration:", ", ".join(f"{reward:.1f}" for reward in run.rewards))',
-        "converged (500 from then on) at iteration": 'print("converged (500 from then on) at iteration:", converged_at)',
+        f"converged ({settings.MAX_EPISODE_STEPS} from then on) at iteration":
+            'print(f"converged ({cartpole.MAX_EPISODE_REWARD} from then on) at iteration:", converged_at)',
         "final parameters": 'print("final parameters: [" + ", ".join(f"{value:.3f}" for value in run.policy.params) + "]")',
     },
     report.P2_NOTEBOOK: {
@@ -421,7 +423,7 @@ def test_numbers_are_given_as_the_notebook_prints_them(answers_md, printed, note
 
 
 def test_random_policy_share_and_sweep_are_the_notebooks(answers_md, printed):
-    sentence = re.search(r"^- (\d+ of \d+ random policies reached the maximum reward of 500): \*\*([\d.]+%)\*\*$", answers_md,
+    sentence = re.search(rf"^- (\d+ of \d+ random policies reached the maximum reward of {settings.MAX_EPISODE_STEPS}): \*\*([\d.]+%)\*\*$", answers_md,
                          flags=re.MULTILINE)
     assert sentence and f"{sentence.group(1)}: {sentence.group(2)}" in printed[report.P1_NOTEBOOK]
     rates = re.search(r"^\| learning rate \| (.+) \|$", answers_md, flags=re.MULTILINE).group(1).split(" | ")
@@ -505,11 +507,11 @@ def test_pdf_typesets_the_derivation(pdf):
 
 def _figure_labels(answers_md):
     """The labels the five figures print, as answers.md's numbers say they must read."""
-    share = re.search(r"^- (\d+) of (\d+) random policies reached the maximum reward of 500: \*\*([\d.]+%)\*\*", answers_md,
+    share = re.search(rf"^- (\d+) of (\d+) random policies reached the maximum reward of {settings.MAX_EPISODE_STEPS}: \*\*([\d.]+%)\*\*", answers_md,
                       flags=re.MULTILINE).groups()
-    converged = _bullet(answers_md, "converged (500 from then on) at iteration")
+    converged = _bullet(answers_md, f"converged ({settings.MAX_EPISODE_STEPS} from then on) at iteration")
     return (
-        f"reward 500: {share[0]} of {share[1]} ({share[2]})",
+        f"reward {settings.MAX_EPISODE_STEPS}: {share[0]} of {share[1]} ({share[2]})",
         f"deadline: iteration {settings.CONVERGENCE_DEADLINE}",
         f"converged at iteration {converged}",
         "Learning-rate sweep",

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from hwlib import CartPoleLinearPolicy, play_episode, random_policy_rewards, run_policy
-from hwlib.cartpole import ALWAYS_LEFT_PARAMS, ALWAYS_RIGHT_PARAMS, episode_seeds, sample_random_params
+from hwlib.cartpole import MAX_EPISODE_REWARD, ALWAYS_LEFT_PARAMS, ALWAYS_RIGHT_PARAMS, episode_seeds, sample_random_params
 from hwlib.machinery.episodes import batch_actions, run_episodes, start_states
 
 
@@ -52,14 +52,14 @@ def test_presets_behave_as_named(balancing_params):
     assert set(left.actions.tolist()) == {0}
     assert set(right.actions.tolist()) == {1}
     rewards = [run_policy(CartPoleLinearPolicy(balancing_params), seed=seed) for seed in range(5)]
-    assert rewards == [500.0] * 5
+    assert rewards == [float(MAX_EPISODE_REWARD)] * 5
 
 
 @pytest.mark.todo("1.1.1")
 def test_episode_records_every_state_and_ends_at_a_threshold_or_the_horizon():
     episode = play_episode(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=1)
     assert episode.states.shape == (episode.num_steps + 1, 4)
-    assert episode.total_reward == episode.num_steps < 500
+    assert episode.total_reward == episode.num_steps < MAX_EPISODE_REWARD
     final_x, _, final_angle, _ = episode.states[-1]
     assert abs(final_x) > 2.4 or abs(final_angle) > 12 * 2 * np.pi / 360
 
@@ -96,7 +96,7 @@ def test_batched_episodes_stop_counting_after_an_episode_ends(balancing_params):
     # autoreset the short ones would keep collecting reward if they were not masked.
     params = np.array([ALWAYS_LEFT_PARAMS, balancing_params, ALWAYS_LEFT_PARAMS])
     rewards = run_episodes(params, [3, 3, 4])
-    assert rewards[1] == 500
+    assert rewards[1] == MAX_EPISODE_REWARD
     assert rewards[0] == run_policy(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=3) < 20
     assert rewards[2] == run_policy(CartPoleLinearPolicy(ALWAYS_LEFT_PARAMS), seed=4) < 20
 
@@ -135,7 +135,7 @@ def test_compacting_the_batch_keeps_every_reward(balancing_params):
     batched = run_episodes(params, seeds)
     looped = run_episodes(params[::7], seeds[::7], batched=False)
     np.testing.assert_array_equal(batched[::7], looped)
-    assert np.all(batched[:100] == 500)
+    assert np.all(batched[:100] == MAX_EPISODE_REWARD)
 
 
 def gymnasium_vector_rewards(params, seeds):
@@ -164,4 +164,4 @@ def test_the_batch_engine_steps_exactly_as_gymnasiums_vector_env(balancing_param
     seeds = generator.integers(0, 2**31 - 1, size=len(params))
     rewards = play_batch(params, seeds)
     np.testing.assert_array_equal(rewards, gymnasium_vector_rewards(params, seeds))
-    assert 0 < np.mean(rewards == 500) < 1 and len(set(rewards.tolist())) > 20  # long and short episodes, mixed
+    assert 0 < np.mean(rewards == MAX_EPISODE_REWARD) < 1 and len(set(rewards.tolist())) > 20  # long and short episodes, mixed

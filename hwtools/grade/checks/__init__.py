@@ -6,10 +6,12 @@ To read or change the checks of one TODO, open its problem's module and go to it
 * ``p2_logreg.py``: 2.1.1, 2.2.1, 2.2.2, 2.2.3, 2.3.1.
 
 A section holds the TODO's input makers, judges and tolerances and, last, its behaviours
-(``behaviour.Behaviour``: key, points, what is checked in words, the probe the worker runs, the
+(``behaviour.Behaviour``: key, what is checked in words, the probe the worker runs, the
 maker and the judge). The probes themselves run in the sandbox (``in_sandbox/probes.py``, under
 the same names); how an answer is compared and shown is ``verdicts.py``; the hidden inputs come
-from ``instructor/hidden_checks``; a TODO's total points from ``hwtools/todos.py``.
+from ``instructor/hidden_checks``; each behaviour's points and a TODO's total from the TODO table
+(``Todo.checks``, ``Todo.auto`` in ``hwlib/machinery/todos.py``, through ``hwtools/todos.py``),
+which must agree (``points_table_problems``: the grader refuses to start otherwise).
 
 A behaviour earns its points only when every one of its inputs passes, visible and hidden, so an
 answer written for the visible inputs earns nothing. Two kinds of judging:
@@ -31,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from hwtools.grade.checks import p1_cartpole, p2_logreg
+from hwtools.todos import TODOS
 
 BEHAVIOURS = p1_cartpole.BEHAVIOURS + p2_logreg.BEHAVIOURS
 BEHAVIOURS_BY_TODO = {}
@@ -87,6 +90,31 @@ def case_set(todo, hidden_module=None):
             for number, args in enumerate(hidden_module.hidden_cases(behaviour)):
                 cases.hidden.append((f"{behaviour.id}/h{number}", behaviour, args))
     return cases
+
+
+def points_table_problems(case_sets, todos=None, behaviours=None):
+    """What makes the points table disagree with itself, in words (empty: nothing); the grader
+    refuses to start on any. ``case_sets``: {TODO: ``CaseSet``} with its hidden cases. A TODO's
+    checks (``Todo.checks``) must be exactly its behaviours here and add up to its automatic
+    points; a behaviour tried on hidden inputs must be tried on visible ones too (its visible
+    twin: what the preview and the feedback show)."""
+    problems, by_todo = [], {}
+    for behaviour in BEHAVIOURS if behaviours is None else behaviours:
+        by_todo.setdefault(behaviour.todo, []).append(behaviour.key)
+    for todo in TODOS if todos is None else todos:
+        table = [key for key, _ in todo.checks]
+        total = round(sum(points for _, points in todo.checks), 9)
+        if total != todo.auto:
+            problems.append(f"TODO {todo.id}: its checks add up to {total:g} points, its total is {todo.auto:g} "
+                            "(hwlib/machinery/todos.py)")
+        if sorted(table) != sorted(by_todo.get(todo.id, [])):
+            problems.append(f"TODO {todo.id}: the TODO table lists the checks {', '.join(table) or 'none'}, the grader "
+                            f"has {', '.join(by_todo.get(todo.id, [])) or 'none'}")
+    for todo, cases in case_sets.items():
+        visible = {cases_of(behaviour).id for _, behaviour, _ in cases.visible}
+        for twinless in sorted({cases_of(behaviour).id for _, behaviour, _ in cases.hidden} - visible):
+            problems.append(f"{twinless}: hidden inputs but no visible one (every hidden behaviour needs a visible twin)")
+    return problems
 
 
 def rebuild_line(case_id, probe):

@@ -1,5 +1,7 @@
 """What one graded behaviour of a TODO is: ``Behaviour``, one row of the checks' table.
 
+Its points are the TODO table's (``Todo.checks`` in ``hwlib/machinery/todos.py``).
+
 A behaviour is one thing the handout asks, described in words, worth some points, tried on
 visible inputs (made by ``make`` from the public seed: students see them, and the student
 edition's answer key holds the reference's values on them) and on hidden ones (made by the
@@ -14,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hwtools.todos import TODO_BY_ID
+
 PUBLIC_SEED = 20_240_131  # the visible inputs' seed: students may know it
 MOST_KEPT = 0.3  # of a TODO's points, what property points may lift a TODO whose value is wrong to
 
@@ -25,7 +29,6 @@ class Behaviour:
 
     todo: str
     key: str
-    points: float
     description: str
     probe: str  # the probe the worker runs on each input (in_sandbox/probes.py)
     make: object  # make(rng, variant) -> the arguments of one case
@@ -35,6 +38,11 @@ class Behaviour:
     exact: bool = False  # judged against the reference's values on the same input
     judged_on: str = ""  # the key of another behaviour of the TODO whose cases this one judges (it has none of its own)
     beside: str = ""  # a property of the value behaviour with this key: its points lift a wrong value to MOST_KEPT at most
+
+    @property
+    def points(self):
+        """Its points: the TODO table's (``Todo.checks``), written once."""
+        return TODO_BY_ID[self.todo].check_points[self.key]
 
     @property
     def id(self):

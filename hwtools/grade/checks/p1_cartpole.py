@@ -2,9 +2,9 @@
 
 Each TODO's section holds everything its points ride on: how its visible inputs are made (the
 hidden ones come from the same makers with the instructor's seed, ``instructor/hidden_checks``),
-its judges and tolerances, and last its behaviours (``TODO_1_2_1``: key, points, what is checked in
-words, the probe that runs in the sandbox, the maker and the judge), with the line a failing
-visible check prints to rebuild its input (``REBUILT``). A probe's code is in
+its judges and tolerances, and last its behaviours (``TODO_1_2_1``: key, what is checked in words
+(its points: the TODO table's ``checks``), the probe that runs in the sandbox, the maker and the
+judge), with the line a failing visible check prints to rebuild its input (``REBUILT``). A probe's code is in
 ``hwtools/grade/in_sandbox/probes.py`` under the same name. The 1.3.x judges read only the
 grader's own records of the episodes and evaluations it answered (``broker.py``, ``episodes.py``),
 never what the student's process says about them. Standard library and numpy only.
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from hwtools import facts
 from hwtools.grade.checks.behaviour import Behaviour
 from hwtools.grade.checks.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, exact, show
 from hwtools.grade.episodes import OWN_LOOP
@@ -79,11 +80,11 @@ def judge_env_actions(args, result, expected, services):
 
 
 TODO_1_1_1 = (
-    Behaviour("1.1.1", "equation-1", 1.5, "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)): on "
+    Behaviour("1.1.1", "equation-1", "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)): on "
               "random parameters and states, and on scores of exactly 0 (the tie: action 0, the < is strict) and "
               "just above and below 0, mixed in among them", "policy_choices", make_policy_states,
               exact("actions", EXACTLY, _policy_row), exact=True),
-    Behaviour("1.1.1", "env-action", 0.5, "the right actions, each one env.step takes: the int 0 or 1 (a Python bool "
+    Behaviour("1.1.1", "env-action", "the right actions, each one env.step takes: the int 0 or 1 (a Python bool "
               "or a numpy integer works too; a float or a numpy bool does not)", "policy_choices", make_policy_states,
               judge_env_actions, visible_count=1, exact=True),
 )
@@ -140,12 +141,12 @@ FD_TOLERANCE = Tolerance(1e-4, 1e-4, "the right formula in float32 is off by at 
 
 
 TODO_1_2_1 = (
-    Behaviour("1.2.1", "equation-3", 7, "central differences, equation (3), with a different step h_i for each "
+    Behaviour("1.2.1", "equation-3", "central differences, equation (3), with a different step h_i for each "
               "coordinate: only coordinate i moves, by +-h_i, and the difference is divided by 2 h_i; on functions "
               "where a forward difference, or a point other than x, is off (the answer: N numbers, shaped like x "
               "or in a list)", "finite_diff", make_fd_steps, exact("gradient", FD_TOLERANCE, _coordinate),
               exact=True),
-    Behaviour("1.2.1", "one-step", 3, "central differences with one step h for every coordinate (h a number or "
+    Behaviour("1.2.1", "one-step", "central differences with one step h for every coordinate (h a number or "
               "equal steps), also for a single number x (a number or one number in a list or array)",
               "finite_diff", make_fd_uniform, exact("gradient", FD_TOLERANCE, _coordinate), visible_count=3,
               exact=True),
@@ -271,14 +272,14 @@ def judge_eval_repeat(args, result, expected, services):
 
 
 TODO_1_3_1 = (
-    Behaviour("1.3.1", "mean-reward", 3, "eval_params returns the mean total reward of num_rollouts episodes of "
+    Behaviour("1.3.1", "mean-reward", "eval_params returns the mean total reward of num_rollouts episodes of "
               "CartPoleLinearPolicy(params), each from its own start state, played with run_policy or in a "
               "gym.make('CartPole-v1') environment (every reset and step is answered and recorded on the "
               "grader's side)", "eval_params", make_eval_case, judge_eval_mean, visible_count=3),
-    Behaviour("1.3.1", "different-starts", 1, "the episodes of one evaluation start from different start states "
+    Behaviour("1.3.1", "different-starts", "the episodes of one evaluation start from different start states "
               "(counts only up to 30% of the TODO while the mean is wrong)", "eval_params", make_eval_case,
               judge_eval_distinct, judged_on="mean-reward", beside="mean-reward"),
-    Behaviour("1.3.1", "repeatable", 1, "the same call gives the same number again, from the same start states "
+    Behaviour("1.3.1", "repeatable", "the same call gives the same number again, from the same start states "
               "(seeded from the seed argument; counts only up to 30% of the TODO while the mean is wrong)",
               "eval_params", make_eval_case, judge_eval_repeat, judged_on="mean-reward", beside="mean-reward"),
 )
@@ -458,14 +459,14 @@ def judge_real_rewards(args, result, expected, services):
 
 
 TODO_1_3_2 = (
-    Behaviour("1.3.2", "equation-4", 3, "on a known smooth objective g standing in for eval_params (with a quartic "
+    Behaviour("1.3.2", "equation-4", "on a known smooth objective g standing in for eval_params (with a quartic "
               "term, so the step matters), every iteration evaluates g with num_rollouts_per_eval rollouts, takes "
               "the step of equation (4), theta <- theta + learning_rate * (central-difference gradient of g with "
               "step fd_step), and records g of the new parameters", "train_known", make_known_training,
               judge_known_steps),
-    Behaviour("1.3.2", "records-reward", 1, "on the same objective, rewards[t] is g of the parameters after update t",
+    Behaviour("1.3.2", "records-reward", "on the same objective, rewards[t] is g of the parameters after update t",
               "train_known", make_known_training, judge_known_rewards, judged_on="equation-4"),
-    Behaviour("1.3.2", "real-run", 1, "in a short real CartPole run, every update is equation (4) with central "
+    Behaviour("1.3.2", "real-run", "in a short real CartPole run, every update is equation (4) with central "
               "differences of step fd_step from eval_params calls with num_rollouts_per_eval episodes, and "
               "rewards[t] is eval_params of the parameters after update t (on the grader's records of every "
               "evaluation)", "train_real", make_real_training, judge_real_rewards, visible_count=1),
@@ -501,7 +502,7 @@ def converged_at(rewards, max_reward):
 
 
 def judge_learning_rate(args, result, expected, services):
-    want = "training converges within 7 iterations: reward 500 from then on"
+    want = f"training converges within {facts.settings.CONVERGENCE_DEADLINE} iterations: reward {facts.MAX_EPISODE_STEPS} from then on"
     if result["status"] != "ok":
         return Verdict(False, want, result["error"])
     value = float(result["values"]["value"])
@@ -531,8 +532,9 @@ def _learning_rate_rule(rewards, top, at):
 
 
 TODO_1_3_3 = (
-    Behaviour("1.3.3", "converges", 2, "with your LEARNING_RATE, the notebook's training run (settings.TRAINING_SEED, "
-              "from zeros; the note says whose training code it ran) reaches reward 500 within 7 iterations and "
+    Behaviour("1.3.3", "converges", "with your LEARNING_RATE, the notebook's training run (settings.TRAINING_SEED, "
+              f"from zeros; the note says whose training code it ran) reaches reward {facts.MAX_EPISODE_STEPS} within "
+              f"{facts.settings.CONVERGENCE_DEADLINE} iterations and "
               "stays there", "settings_value", make_learning_rate, judge_learning_rate, visible_count=1,
               services=_learning_rate_services),
 )

@@ -2,9 +2,9 @@
 
 Each TODO's section holds everything its points ride on: how its visible inputs are made (the
 hidden ones come from the same makers with the instructor's seed, ``instructor/hidden_checks``),
-its tolerances, and last its behaviours (``TODO_2_2_1``: key, points, what is checked in words,
-the probe that runs in the sandbox, the maker and the judge), with the line a failing visible
-check prints to rebuild its input (``REBUILT``). A probe's code is in
+its tolerances, and last its behaviours (``TODO_2_2_1``: key, what is checked in words (its
+points: the TODO table's ``checks``), the probe that runs in the sandbox, the maker and the
+judge), with the line a failing visible check prints to rebuild its input (``REBUILT``). A probe's code is in
 ``hwtools/grade/in_sandbox/probes.py`` under the same name. Every problem-2 check is exact: the
 student's values against the reference's on the same input (``verdicts.exact``). Standard library
 and numpy only.
@@ -56,7 +56,7 @@ def _gradient_entry(args, index):
 
 
 TODO_2_1_1 = (
-    Behaviour("2.1.1", "gradient", 0, "log_likelihood_gradient equals the summed gradient of equation (7), also "
+    Behaviour("2.1.1", "gradient", "log_likelihood_gradient equals the summed gradient of equation (7), also "
               "where scores are in the hundreds (shown for the grader of the derivation; no automatic points)",
               "ll_gradient", make_ll_gradient, exact("gradient", FORMULA_TOLERANCE, _gradient_entry), exact=True),
 )
@@ -117,14 +117,14 @@ def make_sigmoid_precision(rng, variant):
 
 
 TODO_2_2_1 = (
-    Behaviour("2.2.1", "values", 1.2, "sigma(z) = 1 / (1 + e^(-z)) for every entry of a row of numbers from -1000 to "
+    Behaviour("2.2.1", "values", "sigma(z) = 1 / (1 + e^(-z)) for every entry of a row of numbers from -1000 to "
               "1000: 0, +-1, moderate values and far tails, where the values are 0 and 1 and never NaN (warnings are "
               "not failures)", "sigmoid", make_sigmoid_values, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry),
               visible_count=3, exact=True),
-    Behaviour("2.2.1", "any-shape", 0.3, "the same for a single number and for arrays of 2 and 3 axes: values shaped "
+    Behaviour("2.2.1", "any-shape", "the same for a single number and for arrays of 2 and 3 axes: values shaped "
               "like z", "sigmoid", make_sigmoid_shapes, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry),
               visible_count=3, exact=True),
-    Behaviour("2.2.1", "precision", 0.5, "float64 precision where sigma is close to 0 or 1 (20 < |z| <= 50): "
+    Behaviour("2.2.1", "precision", "float64 precision where sigma is close to 0 or 1 (20 < |z| <= 50): "
               "sigma(-24.4) = 2.5e-11, not 0, and sigma(24.4) = 1 - 2.5e-11", "sigmoid", make_sigmoid_precision,
               exact("values", SIGMOID_PRECISION, _sigmoid_entry), exact=True),
 )
@@ -155,10 +155,10 @@ def _sample_row(args, index):
 
 
 TODO_2_2_2 = (
-    Behaviour("2.2.2", "with-bias", 2.5, "predict_prob gives sigma(w~ . [x, 1]) for each row: the constant 1 feature "
+    Behaviour("2.2.2", "with-bias", "predict_prob gives sigma(w~ . [x, 1]) for each row: the constant 1 feature "
               "appended, the bias weight last; also for scores in the hundreds", "predict_prob", make_predict_prob,
               exact("probabilities", FORMULA_TOLERANCE, _sample_row), visible_count=3, exact=True),
-    Behaviour("2.2.2", "zero-bias", 0.5, "with a zero bias weight, predict_prob gives sigma(w . x) for each row",
+    Behaviour("2.2.2", "zero-bias", "with a zero bias weight, predict_prob gives sigma(w . x) for each row",
               "predict_prob", lambda rng, variant: make_predict_prob(rng, variant, zero_bias=True),
               exact("probabilities", FORMULA_TOLERANCE, _sample_row), exact=True),
 )
@@ -190,13 +190,13 @@ def _step_weight(args, index):
 
 
 TODO_2_2_3 = (
-    Behaviour("2.2.3", "from-zero", 1, "one step of equation (8) from zero weights: w~ += learning_rate * "
+    Behaviour("2.2.3", "from-zero", "one step of equation (8) from zero weights: w~ += learning_rate * "
               "sum_i (y_i - sigma(w~ . x~_i)) x~_i, the summed gradient", "gradient_step", make_step,
               exact("weights", FORMULA_TOLERANCE, _step_weight), exact=True),
-    Behaviour("2.2.3", "from-weights", 3, "one step of equation (8) from non-zero weights, also where scores are in "
+    Behaviour("2.2.3", "from-weights", "one step of equation (8) from non-zero weights, also where scores are in "
               "the hundreds", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random"),
               exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=3, exact=True),
-    Behaviour("2.2.3", "two-steps", 1, "two steps in a row: the second starts from the weights the first left in "
+    Behaviour("2.2.3", "two-steps", "two steps in a row: the second starts from the weights the first left in "
               "self.weights", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random", steps=2),
               exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=1, exact=True),
 )
@@ -230,10 +230,10 @@ def _class_weight(args, index):
 
 
 TODO_2_3_1 = (
-    Behaviour("2.3.1", "one-iteration", 1.5, "one iteration of fit from zero weights: classifier c takes one step of "
+    Behaviour("2.3.1", "one-iteration", "one iteration of fit from zero weights: classifier c takes one step of "
               "equation (8) on its one-vs-rest labels (1 for class c, 0 for every other class)", "one_vs_rest",
               make_one_vs_rest, exact("weights", FORMULA_TOLERANCE, _class_weight), exact=True),
-    Behaviour("2.3.1", "iterations", 3.5, "2 to 4 iterations of fit, from zero weights and from the weights the "
+    Behaviour("2.3.1", "iterations", "2 to 4 iterations of fit, from zero weights and from the weights the "
               "classifiers already have: in every iteration each classifier takes exactly one step, on its own "
               "labels, from where the last one left it", "one_vs_rest", make_iterations,
               exact("weights", FORMULA_TOLERANCE, _class_weight), visible_count=2, exact=True),

@@ -1,0 +1,200 @@
+"""Write an offering's facts where the kit states them: ``python -m instructor.facts [--check] [KIT]``.
+
+The facts are written once: points per TODO and per check in the TODO table
+(``hwlib/machinery/todos.py``), the episode cap, the convergence deadline and the other settings in
+``hwlib/settings.py``. This tool derives from them every place that states one in words: the
+notebooks' Todo headings ("(10 pts)") and rubric tables, the points table of ``docs/grading.md``, the
+totals in the README and docs, the settings' tables (``settings.py``, ``policy_search.py``), and the prose that names the
+episode cap or the deadline. ``--check`` changes nothing and exits 1 (listing the files) where a
+file is not what the facts give. Notebooks' stored outputs are not touched: when a fact changes
+what a cell prints, re-store the notebook executed (docs/development.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+from hwtools import facts as fact_files
+
+KIT = fact_files.KIT
+NOTEBOOKS = ("notebooks/p1_cartpole_finite_difference.ipynb", "notebooks/p2_food_cutting_logistic_regression.ipynb")
+TEXTS = ("README.md", "docs/grading.md", "docs/instructor.md", "docs/student-README.md", "docs/development.md",
+         "hwlib/settings.py", "hwlib/cartpole.py", "hwlib/policy_search.py", "hwlib/machinery/todos.py")
+NUMBER = r"\d+(?:\.\d+)?"
+
+
+def number(value):
+    """``value`` as the docs write it: 2, 1.5."""
+    return f"{value:g}"
+
+
+class Facts:
+    """The facts of the kit at ``kit``: its TODO table and its settings."""
+
+    def __init__(self, kit):
+        table = fact_files.load(kit, fact_files.TABLE)
+        self.settings = fact_files.load(kit, fact_files.SETTINGS)
+        self.todos = {todo.id: todo for todo in table.TODOS}
+        self.auto, self.manual = table.AUTO_POINTS, table.MANUAL_POINTS
+        self.cap, self.deadline = self.settings.MAX_EPISODE_STEPS, self.settings.CONVERGENCE_DEADLINE
+
+    def total(self, todo):
+        return self.todos[todo].auto + self.todos[todo].manual
+
+    def graded(self, todo):
+        """How a notebook's rubric says who grades ``todo``."""
+        info = self.todos[todo]
+        if info.auto and info.manual:
+            return f"{number(info.auto)} automatically, {number(info.manual)} by hand"
+        return "automatically" if info.auto else "by hand"
+
+    def points_cell(self, todo):
+        """docs/grading.md's points column."""
+        info = self.todos[todo]
+        if info.auto and info.manual:
+            return f"{number(info.auto)} + {number(info.manual)} by hand"
+        return number(info.auto) if info.auto else f"{number(info.manual)} by hand"
+
+
+def _prose(text, facts):
+    """The facts every text may state in words: totals, the episode cap, the deadline."""
+    cap, deadline = str(facts.cap), str(facts.deadline)
+    rules = [
+        (r"(?<![\w/.])(\d+)/\1(?![\w/.])", lambda m: f"{number(facts.auto)}/{number(facts.auto)}"),
+        (rf"{NUMBER}( points are automatic, ){NUMBER}( are graded by hand)",
+         lambda m: f"{number(facts.auto)}{m[1]}{number(facts.manual)}{m[2]}"),
+        (rf"(auto total \(/){NUMBER}(\))", lambda m: f"{m[1]}{number(facts.auto)}{m[2]}"),
+        (rf"(?<![\w.]){NUMBER}( points in all| manual points)", lambda m: f"{number(facts.manual)}{m[1]}"),
+        (rf"(`(\d\.\d\.\d) by hand: [^`(]*\(/){NUMBER}(\)`)", lambda m: f"{m[1]}{number(facts.todos[m[2]].manual)}{m[3]}"),
+        (r"(converges? within )\d+( iterations)", lambda m: f"{m[1]}{deadline}{m[2]}"),
+        (r"(above 99% within )\d+( iterations)", lambda m: f"{m[1]}{facts.settings.TARGET_ITERATIONS}{m[2]}"),
+    ]
+    for before, after in [("or ", " steps pass"), (r"total reward is \*\*", r"\*\*"), ("all ", " steps"),
+                          ("maximum of ", ""), ("percentage at ", ""), ("balance for all ", ""), ("often all ", " but"),
+                          ("for instance ", " on every one"), ("policies at ", ""), ("reaches ", " within"),
+                          (r"``settings.MAX_EPISODE_STEPS`` \(", r"\)")]:
+        rules.append((rf"(?<![\w.])({before})\d+({after})(?!\d)", lambda m: f"{m[1]}{cap}{m[2]}"))
+    settings = facts.settings
+    grid, episodes = settings.LANDSCAPE_GRID_SIZE, settings.LANDSCAPE_NUM_EPISODES
+    for value, contexts in [
+        (settings.NUM_RANDOM_POLICIES, [("Draw ", " parameter vectors"), ("histogram of the ", " rewards"),
+                                        ("histogram of ", " rewards"), ("the ", r"\s+random policies"),
+                                        ('Todo\\("1\\.1\\.3", "', " random policies")]),
+        (settings.NUM_ROLLOUTS, [(r"scored on the \*same\* ", " start states"), (r"\*\*", r" episodes per evaluation\."),
+                                 ("each iteration on ", " fresh episodes")]),
+        (settings.FD_STEP, [(r"step, \$h = ", r"\$"), (r"uses \$h = ", r"\$")]),
+        (episodes, [(r"\], ", " episodes, seed"), ("mean reward of ", " episodes"), (r"plays the \*same\* ", " start states"), ("on ", " fixed ones")]),
+        (grid, [("The ", " × "), ("× ", " cells"), (r"\), ", " x "), ("x ", r" over \[")]),
+        (f"{grid * grid * episodes:,}", [(r"\(", r" episodes\)"), ("Each redraw plays ", " episodes")]),
+    ]:
+        for before, after in contexts:
+            edge = r"(?<![\w.,])" if before[:1].isalpha() else ""  # "the 1000", not "othe 1000"
+            rules.append((rf"{edge}({before})\d[\d,]*(?:\.\d+)?({after})", lambda m, value=value: f"{m[1]}{value:g}{m[2]}"
+                          if isinstance(value, (int, float)) else f"{m[1]}{value}{m[2]}"))
+    for pattern, make in rules:
+        text = re.sub(pattern, make, text)
+    return text
+
+
+def _headings_and_rubrics(text, facts):
+    """A notebook's Todo headings, rubric headings and rubric rows."""
+    def heading(m):
+        total = facts.total(m[2])
+        return f"{m[1]}({number(total)} pt{'' if total == 1 else 's'})"
+
+    def rubric_total(m):
+        return f"{m[1]}{number(sum(facts.total(todo) for todo in facts.todos if todo.startswith(m[2] + '.')))}{m[3]}"
+
+    def row(m):
+        return f"| {m[1]} {m[2]}| {number(facts.total(m[1]))} | {facts.graded(m[1])} |"
+
+    text = re.sub(rf"^(#+ (\d\.\d\.\d) Todo: .*)\({NUMBER} pts?\)", heading, text, flags=re.M)
+    text = re.sub(rf"^(## Rubric \(problem (\d), ){NUMBER}( points\))", rubric_total, text, flags=re.M)
+    return re.sub(rf"^\| (\d\.\d\.\d) ([^|]*)\| {NUMBER} \| (?:automatically|by hand|{NUMBER} automatically, {NUMBER} by hand) \|",
+                  lambda m: row(m) if m[1] in facts.todos else m[0], text, flags=re.M)
+
+
+def _grading_table(text, facts):
+    """docs/grading.md's table: each TODO's points, and each check's points in the order of ``Todo.checks``."""
+    def row(m):
+        todo = facts.todos[m[1]]
+        points = iter([number(points) for _, points in todo.checks if points])
+        parts = re.split(rf"((?:^|; ){NUMBER}(?: by hand)?: )", m[4])
+        said = [part for part in parts if re.fullmatch(rf"(?:; )?{NUMBER}: ", part or "")]
+        if len(said) != len([p for _, p in todo.checks if p]):
+            return m[0]  # the row does not list each check's points: left as it is
+        out = []
+        for part in parts:
+            if re.fullmatch(rf"(?:; )?{NUMBER}: ", part or ""):
+                part = re.sub(NUMBER, next(points), part, count=1)
+            elif re.fullmatch(rf"(?:; )?{NUMBER} by hand: ", part or ""):
+                part = re.sub(NUMBER, number(todo.manual), part, count=1)
+            out.append(part)
+        return f"| {m[1]} {m[2]}| {facts.points_cell(m[1])} | {''.join(out)}|"
+
+    return re.sub(rf"^\| (\d\.\d\.\d) ([^|]*)\| ({NUMBER}(?: \+ {NUMBER})?(?: by hand)?) \| ([^|]*)\|",
+                  lambda m: row(m) if m[1] in facts.todos else m[0], text, flags=re.M)
+
+
+def _settings_table(text, facts):
+    """The value column of a docstring table of settings, for the settings that are one number."""
+    def row(m):
+        value = getattr(facts.settings, m[2], None)
+        if m[2] == "LEARNING_RATE" or isinstance(value, bool) or not isinstance(value, (int, float)):
+            return m[0]
+        return f"{m[1]}{str(value).ljust(len(m[3]) - 1)} |"
+
+    return re.sub(r"^(\| ``(\w+)`` +\| )([^|]+)\|", row, text, flags=re.M)
+
+
+def rewrite(relative, text, facts):
+    """``text`` of the file ``relative`` with the facts written in."""
+    if relative.endswith(".ipynb"):
+        notebook = json.loads(text)
+        for cell in notebook["cells"]:
+            if cell["cell_type"] == "markdown":
+                source = "".join(cell["source"])
+                new = _prose(_headings_and_rubrics(source, facts), facts)
+                if new != source:
+                    cell["source"] = new.splitlines(keepends=True)
+        return json.dumps(notebook, indent=1, sort_keys=True, ensure_ascii=False) + "\n"
+    if relative == "docs/grading.md":
+        text = _grading_table(text, facts)
+    if relative in ("hwlib/settings.py", "hwlib/policy_search.py"):
+        text = _settings_table(text, facts)
+    return _prose(text, facts)
+
+
+def run(kit=KIT, check=False):
+    """Rewrite (or, with ``check``, only compare) every file; returns the files that differed."""
+    kit, facts, changed = Path(kit), Facts(kit), []
+    for relative in NOTEBOOKS + TEXTS:
+        path = kit / relative
+        if not path.is_file():
+            continue
+        text = path.read_text(encoding="utf-8")
+        new = rewrite(relative, text, facts)
+        if new != text:
+            changed.append(relative)
+            if not check:
+                path.write_text(new, encoding="utf-8")
+    return changed
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(prog="python -m instructor.facts", description=__doc__.split("\n\n")[0])
+    parser.add_argument("kit", nargs="?", default=str(KIT), help="the kit's folder (default: this kit)")
+    parser.add_argument("--check", action="store_true", help="change nothing; exit 1 where a file disagrees with the facts")
+    args = parser.parse_args(argv)
+    changed = run(args.kit, args.check)
+    for relative in changed:
+        print(f"{'out of date' if args.check else 'rewrote'}: {relative}")
+    return 1 if changed and args.check else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
