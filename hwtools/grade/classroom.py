@@ -52,7 +52,7 @@ from hwtools import markers
 from hwtools.grade import class_summary, kits
 from hwtools.grade.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
-from hwtools.grade.gradebook import StudentResult, gradebook_text, status_of
+from hwtools.grade.gradebook import StudentResult, canvas_text, gradebook_text, status_of
 from hwtools.grade.class_progress import Progress
 from hwtools.grade.submissions import Unusable, file_name, kit_file_names, open_submission
 
@@ -217,6 +217,11 @@ def state_folder(gradebook):
     return gradebook.parent / f".{gradebook.stem}-state"
 
 
+def canvas_file(gradebook):
+    """Where the class run writes the Canvas import beside ``gradebook`` (grades.csv: grades-canvas.csv)."""
+    return gradebook.with_name(f"{gradebook.stem}-canvas.csv")
+
+
 def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, grader=None, progress=None,
                 **grader_options):
     """Grade every submission in the folder ``submissions`` against ``reference`` (the instructor's
@@ -247,7 +252,7 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
         raise GradingError(refused)
     state = state_folder(gradebook)
     store = StateStore(state, grading_fingerprint(grader))
-    found = find_submissions(submissions, skip=(gradebook, feedback, state))
+    found = find_submissions(submissions, skip=(gradebook, canvas_file(gradebook), feedback, state))
     kit_names = kit_file_names(grader.layout)
     meter = Progress(len(found), progress)
     if progress is not None:
@@ -286,6 +291,7 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     meter.close()
     results.sort(key=lambda item: item.student)
     _write_atomically(gradebook, gradebook_text(results))
+    _write_atomically(canvas_file(gradebook), canvas_text(results))  # the same totals for Canvas's import
     class_summary.write(results, gradebook)  # beside it: each check's pass rate, each named mistake's count
     feedback.mkdir(parents=True, exist_ok=True)
     for student_result in results:
