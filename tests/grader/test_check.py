@@ -27,6 +27,8 @@ from hwtools.not_done import not_done_in_text, not_done_todo, untouched_todos
 from hwtools.notebook import assigned_names
 import editions
 
+pytestmark = pytest.mark.quick  # the quick tier (pyproject.toml)
+
 KIT = Path(__file__).resolve().parents[2]
 WRONG = KIT / "instructor" / "wrong_solutions"
 

@@ -84,6 +84,7 @@ def text_of(result):
 # --------------------------------------------------------------------------------------------
 
 
+@pytest.mark.quick  # one grade of each TODO
 def test_instructor_kit_earns_every_point(grader):
     result = grader.grade(KIT)
     assert points(result) == full_points(), shortfall(result)

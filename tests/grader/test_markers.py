@@ -31,7 +31,7 @@ import editions
 KIT = Path(__file__).resolve().parents[2]
 AUTO_TODOS = sorted(todo.id for todo in TODO_BY_ID.values() if todo.auto)
 
-pytestmark = pytest.mark.timeout(900)
+pytestmark = [pytest.mark.timeout(900), pytest.mark.quick]  # quick: the quick tier (pyproject.toml)
 
 MODULE = (
     '"""A module."""\n'

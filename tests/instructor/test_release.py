@@ -275,6 +275,8 @@ MODULE = '''\
 
 import numpy as np
 
+pytestmark = pytest.mark.quick  # the quick tier (pyproject.toml)
+
 ### BEGIN SOLUTION 1.3.3
 RATE = 0.5
 ### END SOLUTION 1.3.3
