@@ -157,9 +157,17 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
         else:
             assert cheat["points"] == 0
             points = zero()
-        timed_out = "time limit" in cheat["expect"]
-        made.expect(student, graded(grader, f"timed out: {', '.join(cheat['bodies'])}" if timed_out else "graded"),
-                    points)
+        timed_out = graded(grader, f"timed out: {', '.join(cheat['bodies'])}")
+        if "time limit" in cheat["expect"]:
+            status = timed_out
+        elif "MemoryError" in cheat["expect"]:
+            # Each case fills memory up to the limit again, and the kernel's page zeroing is CPU
+            # time the run is charged with: on a loaded machine the fills may pass the CPU limit
+            # first. Either way the same TODO, and only it, loses its points.
+            status = frozenset({graded(grader), timed_out})
+        else:
+            status = graded(grader)
+        made.expect(student, status, points)
 
     # Nothing to grade, or nothing that may be read.
     (folder / "empty").mkdir()
@@ -218,7 +226,7 @@ def test_every_gradebook_cell_is_the_expected_one(a_class, first_run):
     assert order == sorted(a_class.expected), "one row per student, sorted by id"
     for student, (status, points) in a_class.expected.items():
         row = rows[student]
-        assert row["status"] == status, (student, row)
+        assert row["status"] in (status if isinstance(status, frozenset) else {status}), (student, row)
         for todo in AUTO_TODOS:
             assert float(row[auto_column(todo)]) == points[todo], (student, todo, row)
         assert float(row[TOTAL_COLUMN]) == pytest.approx(sum(points.values())), student

@@ -32,6 +32,8 @@ from instructor.release import (
     transform_python,
 )
 
+pytestmark = pytest.mark.quick  # the quick tier (pyproject.toml)
+
 REPO = Path(__file__).resolve().parents[2]
 MARKER = re.compile(r"(BEGIN|END) SOLUTION|### HINT:|### STUB:")
 
@@ -274,8 +276,6 @@ MODULE = '''\
 """A module with two TODOs."""
 
 import numpy as np
-
-pytestmark = pytest.mark.quick  # the quick tier (pyproject.toml)
 
 ### BEGIN SOLUTION 1.3.3
 RATE = 0.5
