@@ -32,6 +32,7 @@ import editions
 import hwlib
 from hwlib.machinery.episodes import run_episodes
 from hwlib.machinery.todos import TODO_BY_ID
+from hwlib.settings import MAX_EPISODE_STEPS
 from instructor.release import HOMEWORK_FOLDERS, build_student_edition, file_blocks, kit_files
 
 KIT = Path(__file__).resolve().parents[2]
@@ -108,7 +109,7 @@ def test_no_balancing_parameters_appear_in_the_student_edition(student_edition):
     params = np.array(list(candidates))
     seeds = np.arange(5)
     rewards = run_episodes(np.repeat(params, len(seeds), axis=0), np.tile(seeds, len(params))).reshape(len(params), -1)
-    balancing = [f"{tuple(p)} in {candidates[tuple(p)]}" for p, row in zip(params, rewards) if np.all(row == 500)]
+    balancing = [f"{tuple(p)} in {candidates[tuple(p)]}" for p, row in zip(params, rewards) if np.all(row == MAX_EPISODE_STEPS)]
     assert not balancing, f"parameters that balance (an answer to 1.1.2): {balancing}"
     assert len(candidates) >= 2  # the search sees the presets, so it does look
 

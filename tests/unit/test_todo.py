@@ -6,7 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from hwlib.machinery.todos import TODO_BY_ID, TODOS, TodoNotDone
+from hwlib.machinery.todos import AUTO_POINTS, MANUAL_POINTS, TODO_BY_ID, TODOS, TodoNotDone
 from hwtools.markers import is_leftover
 
 KIT = Path(__file__).resolve().parents[2]
@@ -43,7 +43,7 @@ def test_the_grader_reads_the_same_table_without_importing_hwlib():
             "print(sorted(name for name in sys.modules if name.split('.')[0] == 'hwlib'))")
     done = subprocess.run([sys.executable, "-c", code], cwd=KIT, capture_output=True, text=True, check=True)
     table, loaded = done.stdout.strip().splitlines()
-    assert table == f"{[(t.id, t.title, t.auto, t.manual, t.manual_what, t.code) for t in TODOS]!r} 39 21.0"
+    assert table == f"{[(t.id, t.title, t.auto, t.manual, t.manual_what, t.code) for t in TODOS]!r} {AUTO_POINTS} {MANUAL_POINTS}"
     assert loaded == "[]"  # the grader's trusted side never imports the package a student edits
 
 
