@@ -400,11 +400,18 @@ def test_killing_the_sandbox_users_spares_a_run_that_another_grader_holds(user, 
     held = user.start(make_kit(tmp_path, "values = np.array([3.0])"))  # as another grader's run would
     try:
         uid = held._run_folder.uid
-        free = next(entry for entry in user_sandbox.users() if entry.pw_uid != uid)
-        stray = subprocess.Popen(["setpriv", f"--reuid={free.pw_uid}", f"--regid={free.pw_gid}", "--clear-groups", "--",
-                                  "sleep", "2999.75"])
-        while not user_sandbox.processes_of(free.pw_uid) and stray.poll() is None:
-            time.sleep(0.05)
+        # A user that no grader holds (a second test run may hold others): taken while its stray
+        # starts, as a run would, and given back before the killing. (A run that takes it between
+        # kills that user's processes first, the stray too.)
+        slot = user_sandbox._Slot()
+        free = slot.user
+        try:
+            stray = subprocess.Popen(["setpriv", f"--reuid={free.pw_uid}", f"--regid={free.pw_gid}", "--clear-groups",
+                                      "--", "sleep", "2999.75"])
+            while not user_sandbox.processes_of(free.pw_uid) and stray.poll() is None:
+                time.sleep(0.05)
+        finally:
+            slot.release()
         assert user_sandbox.kill_all_users()
         assert stray.wait(timeout=30) == -9, "a free user's process survived"
         assert held.process.poll() is None and user_sandbox.processes_of(uid), "a held run was killed in its middle"
