@@ -466,7 +466,11 @@ def _finish(worker, deadline):
         os.killpg(process.pid, signal.SIGKILL)
     except (ProcessLookupError, PermissionError):
         pass
-    code = process.wait()
+    try:  # SIGKILL from root ends a stopped process too: only a process stuck in the kernel stays
+        code = process.wait(timeout=GONE_SECONDS)
+    except subprocess.TimeoutExpired:
+        code = None
+        _SURVIVORS.append("a worker did not end after SIGKILL")
     process.stdout.close()
     return code
 

@@ -17,8 +17,11 @@ What a run gets (the grader must run as root to start it):
 * the same CPU, memory and file-size limits as in bubblewrap, and a cap on its processes.
 
 When the run ends every process of its user is killed, found by uid (``kill(-1)`` as that user,
-then a ``/proc`` scan until none is left), so a child that left the process group, cleared its
-environment or called ``setsid`` dies too. Not hidden (no namespaces): the host's process list and
+then SIGKILL from root to each one a ``/proc`` scan finds, until none is left), so a child that left
+the process group, cleared its environment or called ``setsid`` dies too. The grader never forks
+to become a pool user: it starts ``setpriv`` with ``close_fds`` (``as_user``: no lock of the grader
+reaches a process a student's code can stop) and waits for it KILL_SECONDS at most, then root
+kills it with SIGKILL, which ends a stopped process too. Not hidden (no namespaces): the host's process list and
 command lines, and every file that any user may read. So the reference kit must not be readable
 by other users: the grader checks it as each pool user (``readable_by_pool``) and refuses to
 grade while one can (the Gradescope autograder makes its ``source/`` root-only and deletes the
@@ -54,6 +57,8 @@ SYSTEM_PYTHON = "/usr/bin/python3"  # the system's Python, which has Debian's py
 USER_NAME = re.compile(r"^hwgrade(\d+)$")
 DEFAULT_USERS = 8
 MAX_PROCESSES = 64  # processes (threads included) of one run's user
+KILL_SECONDS = 10.0  # the most the grader waits for a process it started as a pool user before root kills it
+KILL = ("/bin/kill", "-s", "KILL", "--", "-1")  # kill(1) (procps or util-linux): every process of its user
 LOCK_DIR = Path("/run/hwgrade-sandbox")
 GRADED_PACKAGES = ("numpy", "gymnasium")  # what hwlib imports when the worker loads it (with their requirements)
 _THREAD_LOCK = threading.Lock()
@@ -152,25 +157,42 @@ def processes_of(uid):
     return found
 
 
-def _become(uid, gid):
-    """In a forked child: become user ``uid`` of group ``gid`` for good, without supplementary groups."""
-    os.setgroups([])
-    os.setresgid(gid, gid, gid)
-    os.setresuid(uid, uid, uid)
+def as_user(uid, gid, argv, timeout=None):
+    """Run ``argv`` as user ``uid`` of group ``gid`` (``setpriv``, no supplementary groups) in a
+    process of its own: no descriptor of the grader (``close_fds``: it holds no lock a student's
+    process could keep held), its own session, an empty environment. (exit code, standard output);
+    at ``timeout`` (default KILL_SECONDS) root kills it with SIGKILL, which ends a stopped process
+    too: then (None, b"")."""
+    process = subprocess.Popen([_setpriv(), f"--reuid={uid}", f"--regid={gid}", "--clear-groups", "--", *argv],
+                               stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                               close_fds=True, start_new_session=True, env={"PATH": "/usr/bin:/bin"}, cwd="/")
+    try:
+        output, _ = process.communicate(timeout=KILL_SECONDS if timeout is None else timeout)
+        return process.returncode, output
+    except subprocess.TimeoutExpired:
+        process.kill()
+        try:  # its output pipe may be held by a process it started: that is no reason to wait longer
+            process.communicate(timeout=KILL_SECONDS)
+        except subprocess.TimeoutExpired:
+            process.stdout.close()
+            process.wait(timeout=KILL_SECONDS)
+        return None, b""
+
+
+def _setpriv():
+    return shutil.which("setpriv", path="/usr/bin:/bin") or "setpriv"
 
 
 def kill_user(uid, gid, rounds=50):
     """Kill every process of ``uid``: ``kill(-1, SIGKILL)`` as that user (one system call reaches all
-    of them, forks included), then by a ``/proc`` scan, until a scan finds none. True when none is left."""
+    of them, forks included; a ``setpriv`` process, never a fork of the grader, killed by root if it
+    is not done in KILL_SECONDS: a process of the user may stop it), then SIGKILL from root to each
+    one a ``/proc`` scan finds, until a scan finds none. True when none is left."""
+    as_the_user = True
     for _ in range(rounds):
-        pid = os.fork()
-        if pid == 0:  # the child becomes the user and signals everything that user owns
-            try:
-                _become(uid, gid)
-                os.kill(-1, signal.SIGKILL)
-            finally:
-                os._exit(0)
-        os.waitpid(pid, 0)
+        if as_the_user:
+            code, _ = as_user(uid, gid, list(KILL))
+            as_the_user = code is not None  # stopped or held: root's scan alone from now on
         left = processes_of(uid)
         if not left:
             return True
@@ -305,32 +327,21 @@ def probe(python):
                   f"at the end; no namespaces: the host's processes and world-readable files are visible")
 
 
-def readable_by_pool(paths):
-    """The ``paths`` that a user of the pool can open for reading, tried as each of them (a child
-    process that becomes the user, as ``kill_user`` does)."""
+_OPENABLE = ("import os, sys\n"
+             "for number, path in enumerate(sys.argv[1:]):\n"
+             "    try:\n        os.close(os.open(path, os.O_RDONLY))\n        print(number)\n"
+             "    except OSError:\n        pass\n")
+
+
+def readable_by_pool(paths, timeout=60.0):
+    """The ``paths`` that a user of the pool can open for reading, tried as each of them (``as_user``).
+    A try that does not finish in ``timeout`` seconds counts every path as readable (fail closed)."""
     paths, found = [str(path) for path in paths], set()
     for entry in users():
-        read, write = os.pipe()
-        pid = os.fork()
-        if pid == 0:
-            try:
-                os.close(read)
-                _become(entry.pw_uid, entry.pw_gid)
-                opened = []
-                for number, path in enumerate(paths):
-                    try:
-                        os.close(os.open(path, os.O_RDONLY))
-                        opened.append(str(number))
-                    except OSError:
-                        pass
-                os.write(write, ",".join(opened).encode())
-            finally:
-                os._exit(0)
-        os.close(write)
-        with os.fdopen(read, "rb") as stream:
-            answer = stream.read().decode()
-        os.waitpid(pid, 0)
-        found |= {paths[int(number)] for number in answer.split(",") if number}
+        code, output = as_user(entry.pw_uid, entry.pw_gid, [SYSTEM_PYTHON, "-I", "-c", _OPENABLE, *paths], timeout)
+        if code != 0:
+            return sorted(paths)
+        found |= {paths[int(number)] for number in output.split() if number.isdigit() and int(number) < len(paths)}
     return sorted(found)
 
 

@@ -632,3 +632,58 @@ def test_a_submission_s_runs_share_a_wall_clock_budget(isolated, tmp_path, monke
     # every later one began with nothing left and was given no time at all (above)
     assert len(entries) - len(spent) <= len(ran) <= len(entries) - len(spent) + 1, runs
     assert all(later < earlier for earlier, later in zip(ran, ran[1:])), runs  # the runs spend one budget
+
+
+def test_a_sweeper_that_stops_every_process_of_its_user_cannot_hold_the_grader(user, tmp_path):
+    """A child of the student's code SIGSTOPs every other process of its user, as fast as it can:
+    the process that kills the run's user at its end (once a fork of the grader that held its locks,
+    waited for without a deadline) is caught too. The run still ends, every process of the user is
+    killed by root, and the next run begins (no lock held by a stopped process)."""
+    kit = make_kit(tmp_path / "sweeper", textwrap.dedent("""
+        import signal
+        worker = os.getpid()
+        if os.fork() == 0:
+            os.setsid()
+            while os.getppid() == worker:  # the run is over when the worker is gone
+                time.sleep(0.001)
+            while True:  # one system call stops every other process of the user
+                try:
+                    os.kill(-1, signal.SIGSTOP)
+                except OSError:
+                    pass
+        time.sleep(0.3)
+        values = np.array([1.0])
+    """))
+    done = []
+    thread = threading.Thread(target=lambda: done.append(run(kit, user)), daemon=True)
+    thread.start()
+    thread.join(timeout=240)
+    assert done, "the grader was held by a stopped process"
+    assert values(done[0]).tolist() == [1.0]
+    assert not worker_processes(kit), "the sweeper outlived the run"
+    nxt = make_kit(tmp_path / "next", "values = np.array([2.0])")
+    assert values(run(nxt, user)).tolist() == [2.0]
+
+
+def test_a_kill_as_the_run_s_user_that_is_stopped_is_ended_by_root(user, monkeypatch):
+    """The sweeper's catch made certain: the process that kills as the run's user stops before it
+    acts. The grader waits for it KILL_SECONDS at most, ends it with SIGKILL from root and kills the
+    user's processes itself; nothing of the user is left, the stopped process included."""
+    monkeypatch.setattr(user_sandbox, "KILL", ("/bin/sh", "-c", "kill -STOP $$"))
+    monkeypatch.setattr(user_sandbox, "KILL_SECONDS", 2.0)
+    slot = user_sandbox._Slot()
+    try:
+        uid, gid = slot.user.pw_uid, slot.user.pw_gid
+        stray = subprocess.Popen(["setpriv", f"--reuid={uid}", f"--regid={gid}", "--clear-groups", "--",
+                                  "sleep", "2999.5"])
+        while not user_sandbox.processes_of(uid) and stray.poll() is None:
+            time.sleep(0.05)
+        done = []
+        thread = threading.Thread(target=lambda: done.append(user_sandbox.kill_user(uid, gid)), daemon=True)
+        thread.start()
+        thread.join(timeout=120)
+        assert done == [True], "the grader waited for a stopped process"
+        assert stray.wait(timeout=30) == -9
+        assert not user_sandbox.processes_of(uid)
+    finally:
+        slot.release()
