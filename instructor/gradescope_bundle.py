@@ -63,6 +63,9 @@ cd "$SOURCE"
 "$ROOT/venv/bin/python" -c "import numpy, gymnasium, hwtools.grade"
 # The fallback's users (one per run at a time): hwgrade1..hwgrade8, no login, no home.
 "$ROOT/venv/bin/python" -m hwtools.grade.user_sandbox create
+# No folder but /tmp, /var/tmp, /dev/shm, /run/lock (emptied of a run's files after it) stays
+# writable by every user: nothing a run leaves there reaches a later run.
+"$ROOT/venv/bin/python" -m hwtools.grade.user_sandbox close-shared
 # What runs later is root's to change: the sandbox's users may run the venv, never write it.
 chown -R root:root "$ROOT/venv" "$SOURCE"
 chmod -R go-w "$ROOT/venv" "$SOURCE"

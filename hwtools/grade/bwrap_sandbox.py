@@ -4,7 +4,8 @@ pipe with ``--args``) and the probe that says whether it works here (``probe_iso
 What the options give the worker is in ``sandbox.py``'s docstring: new namespaces (no network, its
 own processes, hostname and IPC), an unprivileged uid without capabilities, read-only ``/usr``,
 Python and kit (``/kit``) and worker (``/grader/worker.py``), a fresh size-limited ``/tmp``, a
-private ``/proc``, a minimal ``/dev``, and only the worker's own environment.
+private ``/proc``, a minimal read-only ``/dev`` with a fresh size-limited ``/dev/shm``, and only the
+worker's own environment. Every writable place is a tmpfs of the run's own, gone with it.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-TMPFS_BYTES = 64 * 1024**2
+TMPFS_BYTES = 64 * 1024**2  # the run's /tmp
+SHM_BYTES = 16 * 1024**2  # the run's /dev/shm (the rest of its /dev is read-only)
 WORKER = Path(__file__).resolve().parent / "in_sandbox" / "worker.py"  # the entry point of every sandboxed process
 
 
@@ -64,11 +66,13 @@ def bwrap_options(python, kit_dir):
             "--die-with-parent", "--new-session", "--hostname", "sandbox"]
     args += _system_binds()
     # /tmp first: a Python installed under /tmp (a CI checkout there) is bound on top of it, not hidden by it
-    args += ["--proc", "/proc", "--dev", "/dev", "--size", str(TMPFS_BYTES), "--tmpfs", "/tmp", "--dir", "/tmp/home"]
+    args += ["--proc", "/proc", "--dev", "/dev", "--size", str(SHM_BYTES), "--tmpfs", "/dev/shm", "--remount-ro", "/dev",
+             "--size", str(TMPFS_BYTES), "--tmpfs", "/tmp", "--dir", "/tmp/home"]
     for path in python_paths(python):
         if not path.startswith("/usr/"):
             args += ["--ro-bind", path, path]
     args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(WORKER), "/grader/worker.py",
+             "--remount-ro", "/",  # the sandbox's root is a tmpfs without a size limit: read-only once built
              "--chdir", "/tmp", "--clearenv"]
     for key, value in worker_env("/tmp/home").items():
         args += ["--setenv", key, value]

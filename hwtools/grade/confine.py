@@ -9,6 +9,9 @@ stays on across ``exec`` and cannot be removed. It refuses, with EACCES/EPERM/EN
 * ``socket()`` of every family: no network, no Unix-socket daemons (``socketpair`` stays, it
   reaches nothing outside);
 * ``io_uring_setup`` (it could open sockets around the filter);
+* System V shared memory, semaphores and message queues (``shmget``, ``semget``, ``msgget``),
+  POSIX message queues (``mq_open``) and kernel keyrings (``add_key``, ``request_key``,
+  ``keyctl``): state outside any file that a later run could read;
 * ``unshare``, ``setns``, and ``clone`` with namespace flags (``clone3``: ENOSYS, so that C
   libraries fall back to ``clone``, whose flags a filter can read).
 
@@ -20,6 +23,7 @@ import errno
 import os
 import sys
 
+SHARED_STATE = ("shmget", "semget", "msgget", "mq_open", "add_key", "request_key", "keyctl")
 # CLONE_NEWUSER, CLONE_NEWNET, CLONE_NEWPID, CLONE_NEWUTS, CLONE_NEWIPC, CLONE_NEWNS, CLONE_NEWCGROUP
 NAMESPACE_FLAGS = (0x10000000, 0x40000000, 0x20000000, 0x04000000, 0x08000000, 0x00020000, 0x02000000)
 
@@ -29,7 +33,7 @@ def load_filter():
 
     rules = seccomp.SyscallFilter(defaction=seccomp.ALLOW)
     rules.add_rule(seccomp.ERRNO(errno.EACCES), "socket")
-    for name in ("io_uring_setup", "unshare", "setns"):
+    for name in ("io_uring_setup", "unshare", "setns", *SHARED_STATE):
         rules.add_rule(seccomp.ERRNO(errno.EPERM), name)
     for flag in NAMESPACE_FLAGS:
         rules.add_rule(seccomp.ERRNO(errno.EPERM), "clone", seccomp.Arg(0, seccomp.MASKED_EQ, flag, flag))

@@ -10,7 +10,7 @@ processes, hostname and IPC), as an unprivileged user without capabilities, and 
 * the kit under test (one composite copy of ``hwlib/``), read-only, as ``/kit``;
 * the worker script, read-only, as ``/grader/worker.py``;
 * a fresh, size-limited tmpfs as ``/tmp`` (its home is ``/tmp/home``), a private ``/proc`` and a
-  minimal ``/dev``.
+  minimal read-only ``/dev`` whose ``/dev/shm`` is a fresh tmpfs of 16 MiB.
 
 bubblewrap itself starts with an empty environment and reads its options from a pipe (``--args``),
 so the sandbox's ``/proc/1`` (bubblewrap's init) shows neither the grader's environment nor the
@@ -203,7 +203,7 @@ class Sandbox:
     def limits(self, time_limit, kind=None):
         """prlimit's options and the worker's own limit arguments for a run of CPU limit ``time_limit``."""
         cpu = max(1, int(time_limit + 0.999))
-        options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}"]
+        options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}", "--core=0"]
         if (kind or self.kind) == "user":
             from hwtools.grade.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
 
@@ -362,7 +362,7 @@ class WorkerProcess:
                 os.close(self._init)
                 self._init = None
             if not gone and self.exclusive:
-                _SURVIVORS.append("a process of an earlier run of student code could not be killed")
+                _SURVIVORS.append("a process or a file of an earlier run of student code could not be removed")
             stream = getattr(self, "_stderr", None)
             if stream is not None:
                 stream.close()

@@ -20,6 +20,7 @@ import re
 import shutil
 import subprocess
 import sys
+import threading
 import time
 import zipfile
 from pathlib import Path
@@ -269,11 +270,24 @@ def test_a_child_that_rewrites_results_json_after_the_grader_does_not_change_the
                                                                                       container, answer_key):
     submission, cheat = attack("results_overwrite", layout, answer_key)
     marker = Path("/tmp/hwgrade-overwrite-" + hashlib.sha256(str(tmp_path / "autograder").encode()).hexdigest()[:12])
+    seen, stop = [], threading.Event()
+
+    def watch():  # the marker lives only while the run's user does: it is removed with what the run left
+        while not stop.is_set() and not seen:
+            if marker.exists():
+                seen.append(True)
+            time.sleep(0.01)
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
     try:
         data, _ = autograde(bundle, tmp_path, submission, container)
+        stop.set()
+        watcher.join(timeout=10)
         assert data["score"] == cheat["points"] == 0
         if container:  # without namespaces the attack ran: it found the root and wrote its marker in /tmp
-            assert marker.exists(), "the attack did not run"
+            assert seen, "the attack did not run"
+            assert not marker.exists(), "a file the run left in /tmp outlived it"
         time.sleep(1.5)  # the forged writes came every 0.05 s while the child lived
         assert json.loads((tmp_path / "autograder" / "results" / "results.json").read_text()) == data
         assert not live_processes(lambda cmdline: cmdline.startswith(b"sh\0-c\0end=")), "the child outlived grading"

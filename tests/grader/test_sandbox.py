@@ -687,3 +687,80 @@ def test_a_kill_as_the_run_s_user_that_is_stopped_is_ended_by_root(user, monkeyp
         assert not user_sandbox.processes_of(uid)
     finally:
         slot.release()
+
+
+LEFTOVERS = textwrap.dedent("""
+    import ctypes, stat
+    token = {token!r}
+    for place in ("/tmp", "/var/tmp", "/dev/shm", "/run/lock"):
+        with open(f"{{place}}/{{token}}", "w") as handle:
+            handle.write("hidden input 4242")
+        os.chmod(f"{{place}}/{{token}}", 0o666)
+    os.makedirs(f"/tmp/{{token}}-folder/deeper")
+    open(f"/tmp/{{token}}-folder/deeper/relay", "w").close()
+    os.mkfifo(f"/tmp/{{token}}-fifo")
+    libc = ctypes.CDLL(None, use_errno=True)
+    refused = [libc.shmget(0, 4096, 0o1666) < 0, libc.semget(0, 1, 0o1666) < 0, libc.msgget(0, 0o1666) < 0]
+    values = np.array([float(all(refused))])
+""")
+
+
+def test_nothing_a_user_run_leaves_in_the_shared_places_reaches_a_later_run(user, tmp_path):
+    """Files, folders and a FIFO that a run leaves where every user may write (/tmp, /var/tmp,
+    /dev/shm, /run/lock), world-readable, are gone when the run ends; System V IPC is refused."""
+    token = f"hwgrade-leftover-{os.getpid()}-{time.monotonic_ns()}"
+    kit = make_kit(tmp_path, LEFTOVERS.format(token=token))
+    refused = values(run(kit, user)).tolist() == [1.0]
+    left = [path for path in [f"{place}/{token}" for place in ("/tmp", "/var/tmp", "/dev/shm", "/run/lock")] +
+            [f"/tmp/{token}-folder", f"/tmp/{token}-fifo"] if os.path.lexists(path)]
+    for path in left:
+        shutil.rmtree(path) if os.path.isdir(path) else os.unlink(path)
+    assert not left, "a run's files outlived it"
+    assert refused, "System V IPC was not refused"
+
+
+def test_what_a_pool_user_left_outside_the_filter_is_removed(user):
+    """System V shared memory (what a run could leave without the filter, or a crashed grader's run)
+    and a file in /dev/shm, made by a pool user no run holds, are removed before that user runs again."""
+    slot = user_sandbox._Slot()
+    try:
+        uid, gid = slot.user.pw_uid, slot.user.pw_gid
+        make = ("import ctypes, os\nlibc = ctypes.CDLL(None)\n"
+                "print(libc.shmget(0, 65536, 0o1666), libc.semget(0, 1, 0o1666), libc.msgget(0, 0o1666))\n"
+                "open('/dev/shm/hwgrade-left-%d' % os.getuid(), 'w').close()\n")
+        code, output = user_sandbox.as_user(uid, gid, ["/usr/bin/python3", "-I", "-c", make], timeout=60)
+        assert code == 0 and all(int(number) >= 0 for number in output.split()), output
+        assert len(user_sandbox._owned_ipc(uid)) == 3 and os.path.exists(f"/dev/shm/hwgrade-left-{uid}")
+        assert user_sandbox.remove_leftovers(uid, gid)
+        assert not user_sandbox._owned_ipc(uid) and not os.path.exists(f"/dev/shm/hwgrade-left-{uid}")
+    finally:
+        slot.release()
+
+
+def test_under_bubblewrap_every_writable_place_is_the_run_s_own_and_bounded(isolated, tmp_path):
+    """The only places a bubblewrap run may write are its own tmpfs mounts (gone with it): /tmp
+    (64 MiB) and /dev/shm (16 MiB); the sandbox's root (a tmpfs without a size limit that holds the
+    mount points) and the rest of /dev are read-only (/dev/pts holds no files)."""
+    if isolated.kind != "bwrap":
+        pytest.skip("bubblewrap does not work here")
+    kit = make_kit(tmp_path, textwrap.dedent("""
+        writable = []
+        for folder, names, _ in os.walk("/"):
+            if folder == "/proc":
+                names[:] = []
+            elif os.access(folder, os.W_OK) and not folder.startswith(("/tmp", "/dev/shm", "/dev/pts")):
+                writable.append(folder)
+        if writable:
+            raise RuntimeError("writable: " + " ".join(writable))
+        written = 0
+        try:
+            with open("/dev/shm/fill", "wb") as handle:
+                for _ in range(64):
+                    handle.write(bytes(1024**2))
+                    handle.flush()
+                    written += 1
+        except OSError:
+            pass
+        values = np.array([float(written)])
+    """))
+    assert values(run(kit, isolated)).tolist()[0] <= 16
