@@ -290,9 +290,7 @@ def test_a_child_that_rewrites_results_json_after_the_grader_does_not_change_the
             assert not marker.exists(), "a file the run left in /tmp outlived it"
         time.sleep(1.5)  # the forged writes came every 0.05 s while the child lived
         assert json.loads((tmp_path / "autograder" / "results" / "results.json").read_text()) == data
-        ours = str(tmp_path / "autograder").encode()  # not the same attack of a second test run on the machine
-        assert not live_processes(lambda cmdline: cmdline.startswith(b"sh\0-c\0end=") and ours in cmdline), \
-            "the child outlived grading"
+        assert not live_processes(lambda cmdline: cmdline.startswith(b"sh\0-c\0end=")), "the child outlived grading"
     finally:
         marker.unlink(missing_ok=True)
     if container:  # nothing under the root that runs later is writable by the sandbox's users
