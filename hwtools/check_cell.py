@@ -37,6 +37,7 @@ import textwrap
 from pathlib import Path
 
 from hwtools.grade.feedback import FAILURE_FIELDS, field_lines
+from hwtools.grade.judging import visible_view
 from hwtools.not_done import KIT_ROOT, not_done_in_text, where
 from hwtools.todos import TODO_BY_ID
 
@@ -124,7 +125,9 @@ def _wrap(text, indent, hang=4):
 
 def check_lines(entry):
     """The lines a check cell prints for the grader's result ``entry`` of one TODO: its visible
-    checks only (a check that fails only on hidden inputs passes on the visible ones)."""
+    checks only (``judging.visible_view``: a check that fails only on hidden inputs passes on the visible
+    ones, and nothing a hidden input shaped is shown)."""
+    entry = entry if entry.get("visible_only") else visible_view(entry)
     todo, title = entry["id"], entry["title"]
     checks = entry["checks"]
     if not checks and entry["manual_possible"]:

@@ -9,10 +9,10 @@ import re
 
 from hwtools.grade import blocks
 from hwtools.grade.feedback import failure_words, points
+from hwtools.grade.judging import visible_view
 from hwtools.grade.safe_text import printable
 from hwtools.grade.submissions import KIT_DEPTH, MAX_PY_BYTES, size_text
 
-STOPPED_NOTE = "the run of your code stopped"  # how the grader's note on a stopped run begins
 
 
 
@@ -33,9 +33,12 @@ def md_escape(text):
 
 def todo_markdown(entry, visible_only=False):
     """One TODO of a result as Markdown: the points, what was checked, the first failing visible
-    check with its input, expected and actual value, the notes. ``visible_only``: the checks'
-    outcomes on the visible inputs only (a check that fails only on hidden inputs reads as passing)
-    and no points, for feedback given before the grades are published."""
+    check with its input, expected and actual value, the notes. ``visible_only``: what the visible
+    inputs alone show (``judging.visible_view``: a check that fails only on hidden inputs reads as
+    passing, nothing a hidden input shaped) and no points, for feedback given before the grades
+    are published."""
+    if visible_only:
+        entry = entry if entry.get("visible_only") else visible_view(entry)
     lines = []
     if not visible_only and entry["auto_possible"]:
         lines.append(f"**{points(entry['auto_earned'])} of {points(entry['auto_possible'])} automatic point(s)** "
@@ -47,9 +50,8 @@ def todo_markdown(entry, visible_only=False):
         lines.append("")
     for check in entry["checks"]:
         if visible_only:
-            passed = check["passed"] or check["failed_on"] == "hidden"
             where = f"{check['visible_inputs']} visible input(s)"
-            lines.append(f"- {'pass' if passed else '**FAIL**'}: {check['check']} ({where})")
+            lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}: {check['check']} ({where})")
             continue
         inputs = f"{check['visible_inputs']} visible"
         inputs += f", {check['hidden_inputs']} hidden" if check["hidden_inputs"] else ""
@@ -57,17 +59,14 @@ def todo_markdown(entry, visible_only=False):
         lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}, {points(check['points'])} pt: "
                      f"{check['check']} ({inputs} input(s){where})")
     failure = entry["first_failure"]
-    if failure and (not failure["hidden"] or not visible_only):
+    if failure:
         headline, fields = failure_words(failure)  # the same words as every other report
         lines += ["", headline]
         for name, text in fields:
             lines += ["", f"{name}:", "", _fence(text)]
-    notes = entry["notes"]
-    if visible_only and not any(check["failed_on"] == "visible" for check in entry["checks"]):
-        notes = [note for note in notes if not note.startswith(STOPPED_NOTE)]  # it may have stopped on a hidden input
-    if notes:
+    if entry["notes"]:
         lines.append("")
-        lines += [f"- note: {md_escape(note)}" for note in notes]
+        lines += [f"- note: {md_escape(note)}" for note in entry["notes"]]
     if entry["manual_possible"] and not visible_only:
         lines.append("")
         lines.append(f"By hand ({points(entry['manual_possible'])} pt): {md_escape(entry['manual'])}")

@@ -56,6 +56,7 @@ from pathlib import Path
 
 from hwtools.grade import kits
 from hwtools.grade.class_feedback import UNGRADED_HELP, md_escape, todo_markdown
+from hwtools.grade.judging import visible_view
 from hwtools.grade.gradebook import GRADED, NOT_ISOLATED, status_of
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.grade.feedback import render
@@ -90,10 +91,11 @@ def _tests(result):
                           "status": "failed", "output": "Not graded: see the message at the top.",
                           "output_format": "md", "visibility": "after_published", "tags": ["points"]})
             continue
-        visible_pass = all(check["passed"] or check["failed_on"] == "hidden" for check in entry["checks"])
+        view = visible_view(entry)  # visible verdicts and notes alone: no bit of a hidden input
+        visible_pass = all(check["passed"] for check in view["checks"])
         tests.append({"name": f"{name}: visible inputs", "number": f"{todo.id}.0", "score": 0.0, "max_score": 0.0,
-                      "status": "passed" if visible_pass and entry["checks"] else "failed",
-                      "output": todo_markdown(entry, visible_only=True), "output_format": "md",
+                      "status": "passed" if visible_pass and view["checks"] else "failed",
+                      "output": todo_markdown(view, visible_only=True), "output_format": "md",
                       "visibility": "visible", "tags": ["visible inputs"]})
         earned = _score(entry["auto_earned"])
         tests.append({"name": name, "number": f"{todo.id}.1", "score": earned, "max_score": _score(todo.auto),

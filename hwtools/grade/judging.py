@@ -58,11 +58,15 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
              "status": "graded", "checks": [], "first_failure": None, "notes": []}
     if run is None:
         entry["status"] = "graded by hand" if info.manual else "no checks"
+        entry["visible_status"], entry["visible_notes"] = entry["status"], []
         return entry
     student = run["student"]
+    visible_notes = []  # what the visible-only view may show: nothing a hidden input shaped
+    entry["visible_status"] = "graded"
     if isinstance(student, str):
-        entry["status"] = "not graded"
+        entry["status"] = entry["visible_status"] = "not graded"
         entry["notes"].append(student)
+        visible_notes.append(student)
         outcome, results = None, {}
     else:
         outcome, results = student
@@ -71,7 +75,12 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
             where = "" if outcome.phase == "hidden" else f" (after {outcome.seconds:.1f} s)"
             entry["notes"].append(f"the run of your code stopped: {outcome.detail}{where}; time limit "
                                   f"{limits[0]:.0f} s, memory limit {limits[1]:.0f} MiB")
+            if outcome.phase != "hidden":
+                entry["visible_status"] = entry["status"]
+                visible_notes.append(entry["notes"][-1])
         entry["notes"].extend(outcome.notes)
+        if not (cases and cases.hidden):  # a run's own notes may come from its hidden phase
+            visible_notes.extend(outcome.notes)
     reference = run["reference"] or {}
     earned, warnings, passed_by_key = 0.0, [], {}
     for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:
@@ -114,13 +123,34 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
                                           "input": "a hidden input (not shown)"}
     entry["auto_earned"] = round(min(_beside_a_right_value(todo, earned, passed_by_key, entry["notes"]), info.auto), 2)
     entry["notes"].extend(seen_notes)
-    for warning in dict.fromkeys(warnings):
+    visible_notes.extend(seen_notes)
+    for warning in dict.fromkeys(warnings):  # warnings of visible inputs only
         entry["notes"].append(f"warning (not a failure): {scrub(warning)}")
+        visible_notes.append(entry["notes"][-1])
+    entry["visible_notes"] = visible_notes
     if known is not None and any(check["failed_on"] == "visible" for check in entry["checks"]):
         mine = mistakes.signature(cases.visible, results, entry)
         if not mistakes.stopped_at_stubs(mine):  # a stub matches no mistake: the table is not even made
             name_mistake(entry, mistakes.name(todo, mine, known(todo)), scrub)
     return entry
+
+
+def visible_view(entry):
+    """The entry of a TODO as its visible inputs alone show it (the preview's check cells,
+    Gradescope's visible test, feedback before grades are out): each check passes unless a visible
+    input fails it, the first failure is the first visible one (whatever hidden inputs did before
+    it), status and notes are those no hidden input shaped (``visible_status``, ``visible_notes``),
+    and no points. Built from visible verdicts and notes only, so it carries no bit of a hidden one."""
+    checks_ = [dict(check, passed=check["failed_on"] != "visible" and bool(check["visible_inputs"]),
+                    failed_on="visible" if check["failed_on"] == "visible" else None, hidden_inputs=0)
+               for check in entry["checks"]]
+    failing = next((check for check in checks_ if check.get("visible_failure")), None)
+    view = {key: value for key, value in entry.items() if key not in ("auto_earned", "first_failure", "rule")}
+    view.update(checks=checks_, status=entry.get("visible_status", entry["status"]),
+                notes=list(entry.get("visible_notes", [])), visible_only=True,
+                first_failure=None if failing is None else {"check": failing["check"], "hidden": False,
+                                                            **failing["visible_failure"]})
+    return view
 
 
 def _visible_failure(behaviour, case_id, args, verdict, scrub):

@@ -153,7 +153,8 @@ def test_every_failure_has_one_wording_in_every_report():
     entry = {"id": "2.2.1", "title": "sigmoid", "auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0,
              "manual": "", "status": "graded", "notes": [], "first_failure": failure,
              "checks": [{"check": "sigma(z) ...", "points": 2, "passed": False, "failed_on": "visible",
-                         "visible_inputs": 1, "hidden_inputs": 1}]}
+                         "visible_inputs": 1, "hidden_inputs": 1,  # as judging gives it: the check's own failure
+                         "visible_failure": {k: v for k, v in failure.items() if k not in ("check", "hidden")}}]}
     result = {"isolated": True, "isolation": "bwrap", "submission": "s", "reference": "r", "one_mistake_one_place": True,
               "todos": [entry], "notes": [], "total": {"auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0}}
     def plain(text):
@@ -167,7 +168,6 @@ def test_every_failure_has_one_wording_in_every_report():
             assert plain(words) in plain(report) and f"{label}:" in report, (name, label)
         assert failure["reproduce"] in report.splitlines() or any(line.endswith(failure["reproduce"])
                                                                  for line in report.splitlines()), name  # one line
-    entry["checks"][0]["visible_failure"] = {k: v for k, v in failure.items() if k not in ("check", "hidden")}
     cell = "\n".join(check_lines(entry))  # the notebook's check cell
     for label, words in fields:
         assert plain(words) in plain(cell) and f"{label}:" in cell, ("check cell", label)

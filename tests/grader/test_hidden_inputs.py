@@ -1,0 +1,78 @@
+"""What a student sees carries no bit of a hidden input, and no wrong value keeps more than 30% (issue 30).
+
+The visible-only view (the check cells, Gradescope's visible test, feedback before the grades are
+out) is built from visible verdicts and visible notes alone (``judging.visible_view``): it shows the
+first visible failure whatever hidden inputs did, and no note a hidden verdict caused (the 30%
+cap's, a run stopped in its hidden phase).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hwtools.check_cell import check_lines
+from hwtools.grade import broker, checks, judging
+from hwtools.grade.class_feedback import todo_markdown
+from hwtools.grade.gradescope_autograder import _tests
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _sigmoid(z):
+    return 0.5 * (1.0 + np.tanh(np.asarray(z, dtype=np.float64) / 2.0))
+
+
+class _Hidden:
+    """A hidden-checks module with one hand-made hidden input per behaviour of 2.2.1."""
+
+    @staticmethod
+    def hidden_cases(behaviour):
+        return [{"z": np.array([4242.0, -3.0, 0.5])}]
+
+
+def _entry(wrong, stop_in_hidden=False):
+    """2.2.1's entry judged on answers that are right except where ``wrong(case_id)`` says."""
+    cases = checks.case_set("2.2.1", _Hidden)
+    results, reference = {}, {}
+    for case_id, _, args in cases.visible + cases.hidden:
+        reference[case_id] = {"values": _sigmoid(args["z"])}
+        values = _sigmoid(args["z"]) + (0.25 if wrong(case_id) else 0.0)
+        results[case_id] = {"status": "ok", "values": {"values": values}, "warnings": []}
+    outcome = broker.Outcome(status="ok", phase="done")
+    if stop_in_hidden:
+        outcome = broker.Outcome(status="timeout", detail="the time limit was reached", phase="hidden")
+        for case_id, _, _ in cases.hidden:
+            results.pop(case_id)
+    run = {"student": (outcome, results), "reference": reference}
+    return judging.judge_todo("2.2.1", run, {}, cases, lambda case_id, behaviour, ref: ref.get(case_id), str,
+                              (5, 1024), [])
+
+
+def _views(entry):
+    tests = _tests({"todos": [entry]})
+    visible_test = next(test for test in tests if test["visibility"] == "visible" and test["number"].startswith("2.2.1"))
+    return {"check cell": "\n".join(check_lines(entry)), "Gradescope's visible test": visible_test["output"],
+            "visible-only Markdown": todo_markdown(entry, visible_only=True), "status": visible_test["status"]}
+
+
+def test_the_visible_view_shows_the_first_visible_failure_whatever_a_hidden_one_did():
+    # "values" fails only on its hidden input, "any-shape" (after it) on a visible one
+    entry = _entry(lambda case_id: case_id.startswith("2.2.1/values/h") or case_id == "2.2.1/any-shape/v1")
+    assert entry["first_failure"]["hidden"], "the full entry's first failure is the hidden one"
+    view = judging.visible_view(entry)
+    assert view["first_failure"]["check"] == entry["checks"][1]["check"] and not view["first_failure"]["hidden"]
+    assert [check["passed"] for check in view["checks"]] == [True, False, True]
+    # the same view whether or not the hidden input failed: no bit of it reaches the student
+    twin = _entry(lambda case_id: case_id == "2.2.1/any-shape/v1")
+    for name, shown in _views(entry).items():
+        assert shown == _views(twin)[name], name
+    assert "hidden" not in _views(entry)["check cell"]
+
+
+def test_the_visible_view_shows_no_note_a_hidden_verdict_caused():
+    stopped = _entry(lambda case_id: False, stop_in_hidden=True)
+    right = _entry(lambda case_id: False)
+    assert stopped["status"] != "graded" and any("stopped" in note for note in stopped["notes"])
+    for name, shown in _views(stopped).items():
+        assert shown == _views(right)[name], name
