@@ -78,6 +78,7 @@ def apply(entries, judged, stubs, preview):
                               f"earned in this preview, as the grade (which runs it with the reference's "
                               f"{' and '.join(blamed)}) gives them if it is right: fix {' and '.join(blamed)} first, "
                               "then run this check again")
+        entry.setdefault("visible_notes", []).append(entry["notes"][-1])  # the preview's: visible checks only
 
 
 def _unname_mistake(entry):
@@ -94,3 +95,4 @@ def training_note(entry, preview):
     why = " (the student edition has no reference: a mistake there fails this check too)" if preview else ""
     entry["notes"].append(f"this check's training run used {whose} for TODOs {', '.join(TRAINING)}{why}, with your "
                           "LEARNING_RATE")
+    entry.setdefault("visible_notes", []).append(entry["notes"][-1])  # fixed words: no hidden verdict in them

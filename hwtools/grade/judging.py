@@ -147,7 +147,7 @@ def visible_view(entry):
     failing = next((check for check in checks_ if check.get("visible_failure")), None)
     view = {key: value for key, value in entry.items() if key not in ("auto_earned", "first_failure", "rule")}
     view.update(checks=checks_, status=entry.get("visible_status", entry["status"]),
-                notes=list(entry.get("visible_notes", [])), visible_only=True,
+                notes=list(entry.get("visible_notes", entry["notes"])), visible_only=True,
                 first_failure=None if failing is None else {"check": failing["check"], "hidden": False,
                                                             **failing["visible_failure"]})
     return view
