@@ -60,11 +60,12 @@ import threading
 import time
 from pathlib import Path
 
+from hwtools.grade.cgroups import MAX_PROCESSES  # processes (threads included) of one run (its user's limit too)
+
 CONFINE = Path(__file__).resolve().with_name("confine.py")
 SYSTEM_PYTHON = "/usr/bin/python3"  # the system's Python, which has Debian's python3-seccomp
 USER_NAME = re.compile(r"^hwgrade(\d+)$")
 DEFAULT_USERS = 8
-MAX_PROCESSES = 64  # processes (threads included) of one run's user
 KILL_SECONDS = 10.0  # the most the grader waits for a process it started as a pool user before root kills it
 KILL = ("/bin/kill", "-s", "KILL", "--", "-1")  # kill(1) (procps or util-linux): every process of its user
 LOCK_DIR = Path("/run/hwgrade-sandbox")
