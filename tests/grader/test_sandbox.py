@@ -824,3 +824,16 @@ def test_a_run_s_memory_is_bounded_as_a_whole(mode, request, tmp_path):
     held = values((outcome, results)).tolist()[0]
     assert held * 400 * 1024**2 < box.memory_limit, f"{held:.0f} children of 400 MiB lived at once"
     assert worker.memory_peak is not None and worker.memory_peak <= box.memory_limit
+
+
+def test_close_shared_finds_every_world_writable_folder_but_the_shared_places(tmp_path):
+    """setup.sh's ``close-shared`` takes the write permission away from these: a folder every user
+    may write to, however deep, is found; the shared places (emptied of a run's files after it) and
+    folders only their owner may write to are not."""
+    (tmp_path / "open" / "deeper" / "open too").mkdir(parents=True)
+    (tmp_path / "closed").mkdir()
+    (tmp_path / "place" / "inside").mkdir(parents=True)
+    for name in ("open", "open/deeper/open too", "place", "place/inside"):
+        (tmp_path / name).chmod(0o1777)
+    found = user_sandbox.open_shared_folders(str(tmp_path), places=(str(tmp_path / "place"),))
+    assert sorted(found) == [str(tmp_path / "open"), str(tmp_path / "open" / "deeper" / "open too")]
