@@ -193,6 +193,10 @@ class Sandbox:
         self.isolated = self.kind != "none"
         self.time_limit = float(time_limit)
         self.memory_limit = int(memory_limit)
+        if self.isolated:
+            from hwtools.grade.cgroups import describe  # noqa: PLC0415 - Linux only
+
+            self.how += "; " + describe(self.memory_limit)
 
     def run_kind(self, trusted=False):
         """How a run is launched: ``kind``, except that a trusted run (a reference server: no student
@@ -249,7 +253,8 @@ class WorkerProcess:
         self.begun = self._holding = self._budget_bound = self._killed = False
         self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-")
         self._token = uuid.uuid4().hex
-        self._run_folder = self._init = None
+        self._run_folder = self._init = self.group = None
+        self.memory_peak = None  # bytes the whole run held at most, where it ran in a cgroup
         env, cwd, fds, info = {}, self._scratch.name, (), None
         try:
             if self.kind == "user":
@@ -262,6 +267,12 @@ class WorkerProcess:
                 home.mkdir()
                 env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
             command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind)
+            if self.kind != "none":  # the run as a whole bounded (processes, memory with tmpfs), where it can be
+                from hwtools.grade.cgroups import RunGroup  # noqa: PLC0415 - Linux only
+
+                self.group = RunGroup.make(sandbox.memory_limit)
+                if self.group is not None:
+                    command = self.group.wrap(command)
             if options is not None:
                 info = os.pipe()
                 fds = (options_pipe(options), info[1])
@@ -338,6 +349,8 @@ class WorkerProcess:
             code = self.process.wait(timeout=2.0)
         except subprocess.TimeoutExpired:
             return False
+        if self.group is not None and self.group.oom_kills():
+            return False  # killed for the run's memory bound, not the CPU limit
         return not self._killed and code in (-signal.SIGKILL, 128 + signal.SIGKILL)
 
     def finish(self, graceful=True):
@@ -361,6 +374,10 @@ class WorkerProcess:
                 gone = _wait_gone(self._init) and gone
                 os.close(self._init)
                 self._init = None
+            if self.group is not None:
+                self.memory_peak = self.group.memory_peak()
+                gone = self.group.close() and gone
+                self.group = None
             if not gone and self.exclusive:
                 _SURVIVORS.append("a process or a file of an earlier run of student code could not be removed")
             stream = getattr(self, "_stderr", None)

@@ -60,11 +60,12 @@ import threading
 import time
 from pathlib import Path
 
+from hwtools.grade.cgroups import MAX_PROCESSES  # processes (threads included) of one run (its user's limit too)
+
 CONFINE = Path(__file__).resolve().with_name("confine.py")
 SYSTEM_PYTHON = "/usr/bin/python3"  # the system's Python, which has Debian's python3-seccomp
 USER_NAME = re.compile(r"^hwgrade(\d+)$")
 DEFAULT_USERS = 8
-MAX_PROCESSES = 64  # processes (threads included) of one run's user
 KILL_SECONDS = 10.0  # the most the grader waits for a process it started as a pool user before root kills it
 KILL = ("/bin/kill", "-s", "KILL", "--", "-1")  # kill(1) (procps or util-linux): every process of its user
 LOCK_DIR = Path("/run/hwgrade-sandbox")
@@ -264,7 +265,8 @@ def remove_leftovers(uid, gid):
     """Remove everything user ``uid`` (its processes killed) left where every user may write:
     its files and folders in SHARED_PLACES, its System V shared memory, semaphores and message
     queues; True when none is left (else the caller must run nothing more as that user)."""
-    for path in _owned_files(uid, gid):
+    found = _owned_files(uid, gid)
+    for path in found:
         try:
             if os.path.isdir(path) and not os.path.islink(path):
                 shutil.rmtree(path)
@@ -282,7 +284,7 @@ def remove_leftovers(uid, gid):
                            env={"PATH": "/usr/bin:/bin"})
         except (OSError, subprocess.TimeoutExpired):
             return False
-    return not _owned_files(uid, gid) and not _owned_ipc(uid)
+    return not (found and _owned_files(uid, gid)) and not _owned_ipc(uid)
 
 
 def open_shared_folders(root="/", places=SHARED_PLACES):
@@ -339,7 +341,12 @@ class RunFolder:
         self.uid, self.gid = self._slot.user.pw_uid, self._slot.user.pw_gid
         self._ended, self._gone = False, True
         try:
-            if not (kill_user(self.uid, self.gid) and remove_leftovers(self.uid, self.gid)):  # a crashed grader's
+            # what a crashed grader's run may have left (unless this user's last run ended clean: the walk
+            # of the shared places takes 0.1 s where /tmp is big)
+            self._clean = _lock_dir() / f"{self._slot.user.pw_name}.clean"
+            was_clean = self._clean.exists()
+            self._clean.unlink(missing_ok=True)
+            if not (kill_user(self.uid, self.gid) and (was_clean or remove_leftovers(self.uid, self.gid))):
                 raise RuntimeError(f"what {self._slot.user.pw_name} left behind could not be removed")
             self.base = Path(tempfile.mkdtemp(prefix="hwgrade-user-"))
             _own(self.base, 0, self.gid, 0o750)
@@ -382,6 +389,8 @@ class RunFolder:
             if getattr(self, "base", None) is not None:
                 shutil.rmtree(self.base, ignore_errors=True)
             self._gone = self._gone and remove_leftovers(self.uid, self.gid)
+            if self._gone and getattr(self, "_clean", None) is not None:
+                self._clean.touch()  # root's own folder: no run can make or remove it
         finally:
             self._slot.release()
         return self._gone

@@ -309,6 +309,23 @@ def test_a_submission_cannot_borrow_the_reference_from_another_run_s_kit(bundle,
     assert points_tests(data)["1.2.1"]["score"] == 0 and data["score"] == cheat["points"] == 0
 
 
+def test_nothing_a_run_leaves_in_a_shared_place_reaches_a_later_run(bundle, layout, tmp_path, container, answer_key):
+    """2.2.1's run leaves its inputs (hidden ones too) in world-readable files in /tmp and /dev/shm;
+    2.2.2's run, later, finds nothing to show in its feedback: every file a run's user leaves in a
+    shared place is removed when the run ends."""
+    submission, cheat = attack("tmp_relay", layout, answer_key)
+    for place in ("/tmp", "/dev/shm"):
+        Path(place, "hwgrade-relay").unlink(missing_ok=True)
+    try:
+        data, _ = autograde(bundle, tmp_path, submission, container)
+    finally:
+        left = [place for place in ("/tmp", "/dev/shm") if Path(place, "hwgrade-relay").exists()]
+        for place in left:
+            Path(place, "hwgrade-relay").unlink()
+    assert "RELAYED" not in json.dumps(data), "a run read what an earlier run left"
+    assert data["score"] == cheat["points"] == 39 and not left
+
+
 def test_student_code_never_runs_as_root(bundle, layout, tmp_path, container, answer_key):
     submission, cheat = attack("runs_as_root", layout, answer_key)
     data, _ = autograde(bundle, tmp_path, submission, container)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import broker, kits, sandbox, user_sandbox
+from hwtools.grade import broker, cgroups, kits, sandbox, user_sandbox
 from hwtools.grade.in_sandbox import channel
 from hwtools.grade.sandbox import Sandbox
 import containers
@@ -764,3 +764,76 @@ def test_under_bubblewrap_every_writable_place_is_the_run_s_own_and_bounded(isol
         values = np.array([float(written)])
     """))
     assert values(run(kit, isolated)).tolist()[0] <= 16
+
+
+@pytest.mark.parametrize("mode", ["isolated", "user"])
+def test_a_run_s_processes_are_bounded_as_a_whole(mode, request, tmp_path):
+    """A run that forks sleeping children until it cannot (at most 200 tried) gets fewer than
+    MAX_PROCESSES of them: the run's cgroup (pids.max), or under the user fallback its user's
+    process limit."""
+    box = request.getfixturevalue(mode)
+    if box.kind == "bwrap" and cgroups.RunGroup.make(box.memory_limit) is None:
+        pytest.skip("no cgroup here: bubblewrap's runs have no process limit (docs/grading.md)")
+    kit = make_kit(tmp_path, textwrap.dedent("""
+        children = 0
+        for _ in range(200):
+            try:
+                pid = os.fork()
+            except OSError:
+                break
+            if pid == 0:
+                time.sleep(60)
+                os._exit(0)
+            children += 1
+        values = np.array([float(children)])
+    """))
+    assert values(run(kit, box)).tolist()[0] < cgroups.MAX_PROCESSES
+
+
+@pytest.mark.parametrize("mode", ["isolated", "user"])
+def test_a_run_s_memory_is_bounded_as_a_whole(mode, request, tmp_path):
+    """Four children of 400 MiB each (every one under the 1 GiB per-process limit) do not all live
+    at once: the run's cgroup holds the whole run, tmpfs files included, to its memory limit."""
+    box = request.getfixturevalue(mode)
+    if cgroups.RunGroup.make(box.memory_limit) is None:
+        pytest.skip("no cgroup here: the memory limit is per process (docs/grading.md)")
+    kit = make_kit(tmp_path, textwrap.dedent("""
+        import tempfile
+        folder, children = tempfile.mkdtemp(), {}
+        for number in range(4):
+            pid = os.fork()
+            if pid == 0:
+                hoard = np.ones(400 * 1024**2 // 8)
+                open(os.path.join(folder, str(os.getpid())), "w").close()
+                time.sleep(60)
+                os._exit(0)
+            children[pid] = True
+        give_up = time.monotonic() + 20
+        while time.monotonic() < give_up:
+            for pid in [pid for pid in children if children[pid]]:
+                if os.waitpid(pid, os.WNOHANG) != (0, 0):
+                    children[pid] = False  # killed
+            holding = [pid for pid in children if children[pid] and os.path.exists(os.path.join(folder, str(pid)))]
+            if len(holding) == sum(children.values()):
+                break  # every living child holds its 400 MiB
+            time.sleep(0.1)
+        values = np.array([float(len(holding))])
+    """))
+    worker = box.start(kit)
+    outcome, results = broker.run_cases(worker, None, [("c0", "sigmoid", {"z": np.array([0.0])})], [], None)
+    held = values((outcome, results)).tolist()[0]
+    assert held * 400 * 1024**2 < box.memory_limit, f"{held:.0f} children of 400 MiB lived at once"
+    assert worker.memory_peak is not None and worker.memory_peak <= box.memory_limit
+
+
+def test_close_shared_finds_every_world_writable_folder_but_the_shared_places(tmp_path):
+    """setup.sh's ``close-shared`` takes the write permission away from these: a folder every user
+    may write to, however deep, is found; the shared places (emptied of a run's files after it) and
+    folders only their owner may write to are not."""
+    (tmp_path / "open" / "deeper" / "open too").mkdir(parents=True)
+    (tmp_path / "closed").mkdir()
+    (tmp_path / "place" / "inside").mkdir(parents=True)
+    for name in ("open", "open/deeper/open too", "place", "place/inside"):
+        (tmp_path / name).chmod(0o1777)
+    found = user_sandbox.open_shared_folders(str(tmp_path), places=(str(tmp_path / "place"),))
+    assert sorted(found) == [str(tmp_path / "open"), str(tmp_path / "open" / "deeper" / "open too")]
