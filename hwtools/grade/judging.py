@@ -1,8 +1,8 @@
 """Points and feedback for one TODO: each behaviour's verdicts on its cases, in the grader's own words.
 
 ``judge_todo`` turns what a run answered (``broker.run_cases``) into the TODO's entry of the
-result dict: points per behaviour (every input, visible and hidden, must pass; property points
-only up to 30% beside a wrong value), the first failing visible check with the known mistake the
+result dict: points per behaviour (every input, visible and hidden, must pass; at most 30% of the
+TODO while one of its value checks fails on any input), the first failing visible check with the known mistake the
 answers match (``mistakes.py``), its input and the line that rebuilds it
 (``checks.rebuild_line``), expected and actual value, and notes. What a student may read is built
 from the grader's words and the student's own values on visible inputs only; a hidden input's
@@ -121,7 +121,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
             else:
                 entry["first_failure"] = {"check": behaviour.description, "hidden": True,
                                           "input": "a hidden input (not shown)"}
-    entry["auto_earned"] = round(min(_beside_a_right_value(todo, earned, passed_by_key, entry["notes"]), info.auto), 2)
+    entry["auto_earned"] = round(min(_capped(todo, earned, passed_by_key, entry["notes"]), info.auto), 2)
     entry["notes"].extend(seen_notes)
     visible_notes.extend(seen_notes)
     for warning in dict.fromkeys(warnings):  # warnings of visible inputs only
@@ -177,18 +177,17 @@ def name_mistake(entry, named, scrub=str):
                                   **{key: value for key, value in first.items() if key not in ("check", "hidden")}}
 
 
-def _beside_a_right_value(todo, earned, passed, notes):
-    """``earned`` with property points (``Behaviour.beside``) counted only up to ``MOST_KEPT``
-    of the TODO where the value they stand beside is wrong: repeatable episodes do not make a
-    wrong mean partly right."""
-    lifted = [b for b in checks.BEHAVIOURS_BY_TODO[todo] if b.beside and passed[b.key] and not passed[b.beside]]
-    if not lifted:
+def _capped(todo, earned, passed, notes):
+    """``earned``, at most ``MOST_KEPT`` of the TODO while any of its value checks (``Behaviour.value``)
+    fails on any input, visible or hidden: no wrong value keeps more, whichever other check it passes.
+    The note says so in the full feedback only (``visible_view`` leaves it out: a hidden failure may cause it)."""
+    wrong = [b.key for b in checks.BEHAVIOURS_BY_TODO[todo] if b.value and not passed[b.key]]
+    most = MOST_KEPT * TODO_BY_ID[todo].auto
+    if not wrong or earned <= most:
         return earned
-    capped = max(earned - sum(b.points for b in lifted), min(earned, MOST_KEPT * TODO_BY_ID[todo].auto))
-    if capped < earned:
-        notes.append(f"the points of its checks of properties ({', '.join(b.key for b in lifted)}) count only up to "
-                     f"{MOST_KEPT:.0%} of TODO {todo} while its value is wrong")
-    return capped
+    notes.append(f"its other checks count only up to {MOST_KEPT:.0%} of TODO {todo} while a value is wrong "
+                 f"({', '.join(wrong)})")
+    return most
 
 
 def seen(todo, read, layout):

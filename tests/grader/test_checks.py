@@ -335,12 +335,20 @@ def test_a_reset_that_no_step_follows_is_no_episode():
     assert arrays["step_episode"].tolist() == [0] and arrays["episode_rewards"].tolist() == [1.0]
 
 
-def test_property_points_lift_a_wrong_value_to_30_percent_at_most():
-    notes = []
-    passed = {"mean-reward": False, "different-starts": True, "repeatable": True}
-    assert judging._beside_a_right_value("1.3.1", 2.0, passed, notes) == 1.5 and "30%" in notes[0]
-    assert judging._beside_a_right_value("1.3.1", 1.0, passed | {"different-starts": False}, []) == 1.0
-    assert judging._beside_a_right_value("1.3.1", 5.0, passed | {"mean-reward": True}, []) == 5.0
+@pytest.mark.parametrize("todo", [todo for todo in checks.GRADED_TODOS if TODO_BY_ID[todo].auto])
+def test_no_wrong_value_keeps_more_than_30_percent_whichever_check_it_passes(todo):
+    behaviours = checks.BEHAVIOURS_BY_TODO[todo]
+    values = [b for b in behaviours if b.value]
+    assert values, f"TODO {todo} has no value check"
+    most = 0.3 * TODO_BY_ID[todo].auto
+    for wrong in values:  # one value check fails (on any input), every other check passes
+        passed = {b.key: b is not wrong for b in behaviours}
+        notes = []
+        earned = sum(b.points for b in behaviours if passed[b.key])
+        assert judging._capped(todo, earned, passed, notes) <= most + 1e-9, wrong.id
+        assert not notes or "30%" in notes[0]
+    every = {b.key: True for b in behaviours}
+    assert judging._capped(todo, TODO_BY_ID[todo].auto, every, []) == TODO_BY_ID[todo].auto
 
 
 # --------------------------------------------------------------------------------------------

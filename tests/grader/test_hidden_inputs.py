@@ -71,8 +71,40 @@ def test_the_visible_view_shows_the_first_visible_failure_whatever_a_hidden_one_
 
 
 def test_the_visible_view_shows_no_note_a_hidden_verdict_caused():
+    capped = _entry(lambda case_id: case_id.startswith("2.2.1/values/h"))  # a value wrong on a hidden input only
+    assert capped["auto_earned"] == 0.6 and any("30%" in note for note in capped["notes"]), "a wrong value keeps 30%"
+    for name, shown in _views(capped).items():
+        assert shown == _views(_entry(lambda case_id: False))[name], name
     stopped = _entry(lambda case_id: False, stop_in_hidden=True)
     right = _entry(lambda case_id: False)
     assert stopped["status"] != "graded" and any("stopped" in note for note in stopped["notes"])
     for name, shown in _views(stopped).items():
         assert shown == _views(right)[name], name
+
+
+def _scores(args):
+    X = np.hstack([np.asarray(args["X"]), np.ones((len(args["X"]), 1))])
+    return X @ np.asarray(args["weights"])
+
+
+@pytest.mark.parametrize("behaviour", ["2.2.2/with-bias", "2.2.3/from-weights"])
+def test_scores_pass_a_naive_sigmoids_overflow_on_both_signs_on_visible_and_hidden_inputs(behaviour):
+    from hwtools.grade.grader import KIT_ROOT, load_hidden_checks
+
+    cases = checks.case_set(behaviour[:5], load_hidden_checks(KIT_ROOT))
+    for phase in (cases.visible, cases.hidden):
+        scores = np.concatenate([_scores(args) for case_id, _, args in phase if case_id.startswith(behaviour)])
+        assert scores.max() > 709 and scores.min() < -709, (behaviour, scores.min(), scores.max())
+
+
+def test_1_1_1_has_scores_near_the_decision_boundary_on_visible_and_hidden_inputs():
+    from hwtools.grade.grader import KIT_ROOT, load_hidden_checks
+
+    cases = checks.case_set("1.1.1", load_hidden_checks(KIT_ROOT))
+    for phase in (cases.visible, cases.hidden):
+        for case_id, _, args in phase:
+            scores = np.einsum("ij,ij->i", args["params"], args["obs"])
+            near = scores[(np.abs(scores) > 1e-6) & (np.abs(scores) < 1e-2)]
+            if case_id.endswith("/h2"):  # the hand-chosen ties
+                continue
+            assert (near > 0).any() and (near < 0).any(), case_id

@@ -19,7 +19,7 @@ import numpy as np
 from hwtools.todos import TODO_BY_ID
 
 PUBLIC_SEED = 20_240_131  # the visible inputs' seed: students may know it
-MOST_KEPT = 0.3  # of a TODO's points, what property points may lift a TODO whose value is wrong to
+MOST_KEPT = 0.3  # of a TODO's points, the most it keeps while one of its value checks fails on any input
 
 
 @dataclass(frozen=True)
@@ -37,7 +37,7 @@ class Behaviour:
     services: object = None  # services(args, result) -> [(probe, args)]: reference runs the judge needs
     exact: bool = False  # judged against the reference's values on the same input
     judged_on: str = ""  # the key of another behaviour of the TODO whose cases this one judges (it has none of its own)
-    beside: str = ""  # a property of the value behaviour with this key: its points lift a wrong value to MOST_KEPT at most
+    value: bool = False  # checks the TODO's value: while it fails on any input, the TODO keeps MOST_KEPT at most
 
     @property
     def points(self):

@@ -43,13 +43,27 @@ def _integer_rows(rng, want):
     return rows
 
 
+def _near_boundary_rows(rng, count):
+    """Rows of random parameters and states whose score params . obs is within 1e-4 to 3e-3 of 0,
+    half on each side: far from any float rounding (1e-16), near enough that an observation (or
+    parameters) rounded to 2 decimals, or any other change of the inputs, takes the other side."""
+    rows = []
+    for k in range(count):
+        params, obs = rng.normal(size=4), rng.normal(size=4) * np.array([1.0, 1.0, 0.1, 1.0])
+        score = float(rng.uniform(1e-4, 3e-3)) * (1.0 if k % 2 else -1.0)
+        obs = obs + (score - params @ obs) / (params @ params) * params
+        rows.append((params, obs))
+    return rows
+
+
 def make_policy_states(rng, variant):
     """Random parameters and states (pole angles as small as the pole's), and at random places among
-    them four scores of exactly 0 (the tie of equation (1): action 0) and two just above and below."""
+    them four scores of exactly 0 (the tie of equation (1): action 0), two just above and below, and
+    four random ones within 3e-3 of 0 (half on each side)."""
     count = 30
     params = rng.normal(size=(count, 4))
     obs = rng.normal(size=(count, 4)) * np.array([1.0, 1.0, 0.1, 1.0])
-    rows = [(p, o) for p, o in zip(params, obs)] + _integer_rows(rng, {0: 4, 1: 2, -1: 2})
+    rows = [(p, o) for p, o in zip(params, obs)] + _integer_rows(rng, {0: 4, 1: 2, -1: 2}) + _near_boundary_rows(rng, 4)
     order = rng.permutation(len(rows))
     return {"params": np.array([rows[i][0] for i in order]), "obs": np.array([rows[i][1] for i in order])}
 
@@ -83,7 +97,7 @@ TODO_1_1_1 = (
     Behaviour("1.1.1", "equation-1", "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)): on "
               "random parameters and states, and on scores of exactly 0 (the tie: action 0, the < is strict) and "
               "just above and below 0, mixed in among them", "policy_choices", make_policy_states,
-              exact("actions", EXACTLY, _policy_row), exact=True),
+              exact("actions", EXACTLY, _policy_row), exact=True, value=True),
     Behaviour("1.1.1", "env-action", "the right actions, each one env.step takes: the int 0 or 1 (a Python bool "
               "or a numpy integer works too; a float or a numpy bool does not)", "policy_choices", make_policy_states,
               judge_env_actions, visible_count=1, exact=True),
@@ -145,7 +159,7 @@ TODO_1_2_1 = (
               "coordinate: only coordinate i moves, by +-h_i, and the difference is divided by 2 h_i; on functions "
               "where a forward difference, or a point other than x, is off (the answer: N numbers, shaped like x "
               "or in a list)", "finite_diff", make_fd_steps, exact("gradient", FD_TOLERANCE, _coordinate),
-              exact=True),
+              exact=True, value=True),
     Behaviour("1.2.1", "one-step", "central differences with one step h for every coordinate (h a number or "
               "equal steps), also for a single number x (a number or one number in a list or array)",
               "finite_diff", make_fd_uniform, exact("gradient", FD_TOLERANCE, _coordinate), visible_count=3,
@@ -275,13 +289,13 @@ TODO_1_3_1 = (
     Behaviour("1.3.1", "mean-reward", "eval_params returns the mean total reward of num_rollouts episodes of "
               "CartPoleLinearPolicy(params), each from its own start state, played with run_policy or in a "
               "gym.make('CartPole-v1') environment (every reset and step is answered and recorded on the "
-              "grader's side)", "eval_params", make_eval_case, judge_eval_mean, visible_count=3),
+              "grader's side)", "eval_params", make_eval_case, judge_eval_mean, visible_count=3, value=True),
     Behaviour("1.3.1", "different-starts", "the episodes of one evaluation start from different start states "
               "(counts only up to 30% of the TODO while the mean is wrong)", "eval_params", make_eval_case,
-              judge_eval_distinct, judged_on="mean-reward", beside="mean-reward"),
+              judge_eval_distinct, judged_on="mean-reward"),
     Behaviour("1.3.1", "repeatable", "the same call gives the same number again, from the same start states "
               "(seeded from the seed argument; counts only up to 30% of the TODO while the mean is wrong)",
-              "eval_params", make_eval_case, judge_eval_repeat, judged_on="mean-reward", beside="mean-reward"),
+              "eval_params", make_eval_case, judge_eval_repeat, judged_on="mean-reward"),
 )
 REBUILT["eval_params"] = ("params, num_rollouts, seed", "eval_params(params, num_rollouts, seed=seed), twice")
 
@@ -463,13 +477,13 @@ TODO_1_3_2 = (
               "term, so the step matters), every iteration evaluates g with num_rollouts_per_eval rollouts, takes "
               "the step of equation (4), theta <- theta + learning_rate * (central-difference gradient of g with "
               "step fd_step), and records g of the new parameters", "train_known", make_known_training,
-              judge_known_steps),
+              judge_known_steps, value=True),
     Behaviour("1.3.2", "records-reward", "on the same objective, rewards[t] is g of the parameters after update t",
-              "train_known", make_known_training, judge_known_rewards, judged_on="equation-4"),
+              "train_known", make_known_training, judge_known_rewards, judged_on="equation-4", value=True),
     Behaviour("1.3.2", "real-run", "in a short real CartPole run, every update is equation (4) with central "
               "differences of step fd_step from eval_params calls with num_rollouts_per_eval episodes, and "
               "rewards[t] is eval_params of the parameters after update t (on the grader's records of every "
-              "evaluation)", "train_real", make_real_training, judge_real_rewards, visible_count=1),
+              "evaluation)", "train_real", make_real_training, judge_real_rewards, visible_count=1, value=True),
 )
 REBUILT["train_known"] = ("kwargs, g", "train_cartpole_policy(**kwargs) with g(p) as each eval_params(p, ...)")
 REBUILT["train_real"] = ("kwargs", "train_cartpole_policy(**kwargs)")
@@ -536,7 +550,7 @@ TODO_1_3_3 = (
               f"from zeros; the note says whose training code it ran) reaches reward {facts.MAX_EPISODE_STEPS} within "
               f"{facts.settings.CONVERGENCE_DEADLINE} iterations and "
               "stays there", "settings_value", make_learning_rate, judge_learning_rate, visible_count=1,
-              services=_learning_rate_services),
+              services=_learning_rate_services, value=True),
 )
 REBUILT["settings_value"] = None  # a setting: nothing to rebuild
 

@@ -120,7 +120,7 @@ TODO_2_2_1 = (
     Behaviour("2.2.1", "values", "sigma(z) = 1 / (1 + e^(-z)) for every entry of a row of numbers from -1000 to "
               "1000: 0, +-1, moderate values and far tails, where the values are 0 and 1 and never NaN (warnings are "
               "not failures)", "sigmoid", make_sigmoid_values, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry),
-              visible_count=3, exact=True),
+              visible_count=3, exact=True, value=True),
     Behaviour("2.2.1", "any-shape", "the same for a single number and for arrays of 2 and 3 axes: values shaped "
               "like z", "sigmoid", make_sigmoid_shapes, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry),
               visible_count=3, exact=True),
@@ -137,6 +137,16 @@ REBUILT["sigmoid"] = ("z", "sigmoid(z)")
 # --------------------------------------------------------------------------------------------
 
 
+def _past_overflow(rng, X, weights):
+    """``X`` with its first two rows replaced by points whose scores are drawn past +709 and past
+    -709 (750 to 1,000: where e^s overflows, so a sigmoid computed as e^s / (1 + e^s) gives NaN and
+    one as 1 / (1 + e^-s) a warning): each a multiple of the weights (without the bias)."""
+    X, w, bias = X.copy(), np.asarray(weights[:-1], dtype=np.float64), float(weights[-1])
+    for row, sign in ((0, 1.0), (1, -1.0)):
+        X[row] = (sign * float(rng.uniform(750, 1000)) - bias) * w / (w @ w)
+    return X
+
+
 def make_predict_prob(rng, variant, zero_bias=False):
     features = int(rng.integers(3, 6))
     X, _ = _two_class_data(rng, int(rng.integers(8, 15)), features)
@@ -147,6 +157,7 @@ def make_predict_prob(rng, variant, zero_bias=False):
         weights[-1] = 0.5 + weights[-1]
     if variant == 2 and not zero_bias:  # far scores (hundreds): probabilities 0 and 1, never NaN
         weights = weights * 150.0
+        X = _past_overflow(rng, X, weights)
     return {"n_features": features, "weights": weights, "X": X}
 
 
@@ -157,10 +168,10 @@ def _sample_row(args, index):
 TODO_2_2_2 = (
     Behaviour("2.2.2", "with-bias", "predict_prob gives sigma(w~ . [x, 1]) for each row: the constant 1 feature "
               "appended, the bias weight last; also for scores in the hundreds", "predict_prob", make_predict_prob,
-              exact("probabilities", FORMULA_TOLERANCE, _sample_row), visible_count=3, exact=True),
+              exact("probabilities", FORMULA_TOLERANCE, _sample_row), visible_count=3, exact=True, value=True),
     Behaviour("2.2.2", "zero-bias", "with a zero bias weight, predict_prob gives sigma(w . x) for each row",
               "predict_prob", lambda rng, variant: make_predict_prob(rng, variant, zero_bias=True),
-              exact("probabilities", FORMULA_TOLERANCE, _sample_row), exact=True),
+              exact("probabilities", FORMULA_TOLERANCE, _sample_row), exact=True, value=True),
 )
 REBUILT["predict_prob"] = ("model, X", "model.predict_prob(X)")
 
@@ -177,6 +188,7 @@ def make_step(rng, variant, start="zero", steps=1):
     weights = np.zeros(features + 1) if start == "zero" else rng.normal(size=features + 1) * 0.3
     if start != "zero" and variant == 2:  # far scores: y - sigma is 0 or +-1, never NaN
         weights = weights * 400.0
+        X = _past_overflow(rng, X, weights)
     return {"n_features": features, "weights": weights, "X": X, "y": y if variant % 2 == 0 else y.astype(np.float64),
             "learning_rate": float((0.05, 0.01, 0.02)[variant % 3]), "steps": steps}
 
@@ -192,13 +204,13 @@ def _step_weight(args, index):
 TODO_2_2_3 = (
     Behaviour("2.2.3", "from-zero", "one step of equation (8) from zero weights: w~ += learning_rate * "
               "sum_i (y_i - sigma(w~ . x~_i)) x~_i, the summed gradient", "gradient_step", make_step,
-              exact("weights", FORMULA_TOLERANCE, _step_weight), exact=True),
+              exact("weights", FORMULA_TOLERANCE, _step_weight), exact=True, value=True),
     Behaviour("2.2.3", "from-weights", "one step of equation (8) from non-zero weights, also where scores are in "
               "the hundreds", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random"),
-              exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=3, exact=True),
+              exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=3, exact=True, value=True),
     Behaviour("2.2.3", "two-steps", "two steps in a row: the second starts from the weights the first left in "
               "self.weights", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random", steps=2),
-              exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=1, exact=True),
+              exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=1, exact=True, value=True),
 )
 REBUILT["gradient_step"] = ("model, X, y, learning_rate, steps", "model.gradient_ascent_step(X, y, learning_rate), steps times")
 
@@ -232,11 +244,11 @@ def _class_weight(args, index):
 TODO_2_3_1 = (
     Behaviour("2.3.1", "one-iteration", "one iteration of fit from zero weights: classifier c takes one step of "
               "equation (8) on its one-vs-rest labels (1 for class c, 0 for every other class)", "one_vs_rest",
-              make_one_vs_rest, exact("weights", FORMULA_TOLERANCE, _class_weight), exact=True),
+              make_one_vs_rest, exact("weights", FORMULA_TOLERANCE, _class_weight), exact=True, value=True),
     Behaviour("2.3.1", "iterations", "2 to 4 iterations of fit, from zero weights and from the weights the "
               "classifiers already have: in every iteration each classifier takes exactly one step, on its own "
               "labels, from where the last one left it", "one_vs_rest", make_iterations,
-              exact("weights", FORMULA_TOLERANCE, _class_weight), visible_count=2, exact=True),
+              exact("weights", FORMULA_TOLERANCE, _class_weight), visible_count=2, exact=True, value=True),
 )
 REBUILT["one_vs_rest"] = ("model, X, y, learning_rate, n_iters", "model.fit(X, y, learning_rate, n_iters)")
 
