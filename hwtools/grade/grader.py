@@ -337,11 +337,11 @@ class Grader:
             files = self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
             if isinstance(files, str):
                 return self._judge(todo, {"student": files, "reference": self._reference_of(todo)}, pool, notes)
-            cases = self.cases[todo]
+            cases = self.case_set(todo, self._parsed_bodies(todo, read, layout))
             key = _digest(kits.files_digest(files), pool.digest if pool else "", todo,
                           *[fingerprint({"id": case_id, "args": args}) for case_id, _, args in cases.visible + cases.hidden],
                           len(cases.visible), self.sandbox.time_limit)
-            return copy.deepcopy(self._memoized(key, lambda: self._run_and_judge(todo, files, pool, budget, notes),
+            return copy.deepcopy(self._memoized(key, lambda: self._run_and_judge(todo, files, pool, budget, notes, cases),
                                                 keep=lambda entry: not entry.pop("_budget", False)))
         except GradingError:
             raise
@@ -351,20 +351,40 @@ class Grader:
             entry["grader_error"] = f"{type(error).__name__}: {error}"[:300]
             return entry
 
-    def _reference_of(self, todo):
-        return self._reference_values(todo) if self.reference is not None else None
+    def case_set(self, todo, bodies):
+        """The cases ``todo`` is graded on for the code ``bodies`` (the student's blocks for it): the
+        visible ones, and hidden ones drawn for the SHA-256 of that code (``hidden_cases(behaviour,
+        draw)``): each submission gets its own hidden inputs, so none that one run could carry out
+        serves another submission, and a regrade of the same code gets the same inputs and grade."""
+        if self.hidden is None:
+            return self.cases[todo]
+        draw = _digest(todo, *("\n".join(body) for body in bodies))
+        return self._memoized(("cases", todo, draw), lambda: checks.case_set(todo, self.hidden, draw))
 
-    def _run_and_judge(self, todo, files, pool, budget, notes):
-        cases = self.cases[todo]
+    def case_sets(self, submission):
+        """{TODO: its case set} for the submission at ``submission`` (what its grading draws)."""
+        layout = self.layout or blocks.load_layout(Path(submission))
+        read = blocks.read_submission(Path(submission), layout)
+        sets = {}
+        for todo in checks.GRADED_TODOS:
+            bodies = self._parsed_bodies(todo, read, layout)
+            sets[todo] = self.cases[todo] if isinstance(bodies, str) else self.case_set(todo, bodies)
+        return sets
+
+    def _reference_of(self, todo, cases=None):
+        return self._reference_values(todo, cases) if self.reference is not None else None
+
+    def _run_and_judge(self, todo, files, pool, budget, notes, cases):
         run = {"student": self._run_now(todo, files, _phase(cases.visible), _phase(cases.hidden), pool, budget),
-               "reference": self._reference_of(todo)}
-        entry = self._judge(todo, run, pool, notes)
+               "reference": self._reference_of(todo, cases)}
+        entry = self._judge(todo, run, pool, notes, cases)
         entry["_budget"] = run["student"][0].budget  # another submission with this code gets its own budget
         return entry
 
-    def _judge(self, todo, run, pool, notes):
-        services = self._services(self._service_requests(todo, run), pool)
-        return judging.judge_todo(todo, run, services, self.cases[todo], self._expected, self._scrub, self._limits, notes,
+    def _judge(self, todo, run, pool, notes, cases=None):
+        cases = cases or self.cases[todo]
+        services = self._services(self._service_requests(todo, run, cases), pool)
+        return judging.judge_todo(todo, run, services, cases, self._expected, self._scrub, self._limits, notes,
                                   self.known_mistakes)
 
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
@@ -376,11 +396,14 @@ class Grader:
                 for path in Path(scratch).rglob("*"):
                     path.chmod(0o700)
 
-    def _reference_values(self, todo):
-        """{case id: the reference's values} for every exact case of ``todo`` (memoized per grader)."""
+    def _reference_values(self, todo, cases=None):
+        """{case id: the reference's values} for every exact case of ``todo`` (its case set ``cases``,
+        default the grader's own; memoized per grader and case set)."""
+        cases = cases or self.cases[todo]
+
         def compute():
             values = {}
-            for case_id, behaviour, args in self.cases[todo].visible + self.cases[todo].hidden:
+            for case_id, behaviour, args in cases.visible + cases.hidden:
                 if not behaviour.exact:
                     continue
                 try:
@@ -393,7 +416,7 @@ class Grader:
                 values[case_id] = result["values"]
             return values
 
-        return self._memoized(("reference", todo), compute)
+        return self._memoized(("reference", todo, cases.draw), compute)
 
     def _memoized(self, key, compute, keep=lambda value: True):
         """``compute()``, once per ``key`` for this grader (threads asking at once wait for the first);

@@ -11,6 +11,9 @@ Change ``HIDDEN_SEED`` for each offering of the course; the reference answers ar
 from the reference solution at every grading, nothing else needs to change.
 """
 
+import hashlib
+import hmac
+
 import numpy as np
 
 HIDDEN_SEED = 0x6F3A_91C2_57D4_0B1E  # instructor-only; pick a new one per offering
@@ -31,26 +34,32 @@ COUNTS = {
 }
 
 
-def _extra_cases(behaviour_id):
-    """Inputs chosen by hand, beyond the generated ones."""
+def _extra_cases(behaviour_id, rng):
+    """Inputs chosen by hand, beyond the generated ones: their structure is fixed, their numbers drawn."""
     if behaviour_id == "1.2.1/equation-3":
         # one tiny and one large step next to each other: an h taken from the wrong coordinate shows at once
-        return [{"f": {"kind": "coupled", "a": np.array([1.5, -0.7, 2.0]), "b": np.array([0.4, -1.1, 0.3]),
-                       "m": np.array([[0.5, -0.2, 0.1], [0.3, 0.8, -0.6], [0.0, 0.7, -0.4]])},
-                 "x": np.array([0.3, -1.2, 1.7]), "h": np.array([0.01, 0.9, 0.2])}]
+        return [{"f": {"kind": "coupled", "a": rng.uniform(-2, 2, 3).round(1), "b": rng.uniform(-1.2, 1.2, 3).round(1),
+                       "m": rng.uniform(-0.8, 0.8, (3, 3)).round(1)},
+                 "x": rng.uniform(-1.5, 1.5, 3).round(1), "h": np.array([0.01, float(rng.uniform(0.6, 0.9)), 0.2])}]
     if behaviour_id == "1.3.1/mean-reward":
-        return [{"params": np.array([0.0, 0.0, 0.0, 0.0]), "num_rollouts": 5, "seed": 4242}]
+        return [{"params": np.array([0.0, 0.0, 0.0, 0.0]), "num_rollouts": 5, "seed": int(rng.integers(1000, 10_000))}]
     if behaviour_id == "2.2.1/any-shape":
-        return [{"z": np.array([[-800.0, 800.0], [-36.0, 36.0]])}]
+        far, mid = float(rng.uniform(750, 1000)), float(rng.uniform(30, 40))
+        return [{"z": np.array([[-far, far], [-mid, mid]])}]
     if behaviour_id == "1.1.1/equation-1":
         # ties whose score is exactly 0 in any order of summation, with halves as well as whole numbers
-        return [{"params": np.array([[0.5, -1.0, 2.0, 0.25], [1.0, 1.0, 0.0, -1.0], [0.0, 0.0, 0.0, 0.0]]),
-                 "obs": np.array([[1.0, 0.5, 0.0, 0.0], [0.5, -0.25, 3.0, 0.25], [0.01, -0.02, 0.03, 0.04]])}]
+        a, b = float(rng.integers(1, 4)) / 2, float(rng.integers(1, 4))
+        return [{"params": np.array([[a, -1.0, 2.0, 0.25], [1.0, 1.0, 0.0, -1.0], [0.0, 0.0, 0.0, 0.0]]),
+                 "obs": np.array([[1.0, a, 0.0, 0.0], [b / 2, -b / 4, 3.0, b / 4], rng.uniform(-0.05, 0.05, 4)])}]
     return []
 
 
-def hidden_cases(behaviour):
-    """The hidden inputs of one behaviour (a ``hwtools.grade.checks.behaviour.Behaviour``)."""
+def hidden_cases(behaviour, draw=""):
+    """The hidden inputs of one behaviour (a ``hwtools.grade.checks.behaviour.Behaviour``), drawn from
+    HMAC-SHA256(HIDDEN_SEED, behaviour id + ``draw``); the grader passes as ``draw`` the SHA-256 of the
+    submission's code for that TODO, so each submission gets its own hidden inputs (nothing one
+    student's run could carry out serves another) and a regrade of the same code the same ones."""
     count = COUNTS.get(behaviour.id, behaviour.visible_count)
-    rng = np.random.default_rng([HIDDEN_SEED, int.from_bytes(behaviour.id.encode(), "little") % (2**63)])
-    return [behaviour.make(rng, variant) for variant in range(count)] + _extra_cases(behaviour.id)
+    key = hmac.new(HIDDEN_SEED.to_bytes(8, "little"), f"{behaviour.id}\0{draw}".encode(), hashlib.sha256).digest()
+    rng = np.random.default_rng(int.from_bytes(key, "little"))
+    return [behaviour.make(rng, variant) for variant in range(count)] + _extra_cases(behaviour.id, rng)

@@ -438,6 +438,8 @@ def test_cheat_earns_nothing_it_should_not(request, layout, tmp_path, path, answ
         if entry["id"] in cheat["hardcode"]:  # right on every visible input, wrong on the hidden ones
             assert all(check["failed_on"] == "hidden" for check in entry["checks"]), entry
     leak_search.assert_nothing_leaks(result, secrets)
+    # and its own hidden inputs (drawn for its code)
+    leak_search.assert_nothing_leaks(result, leak_search.secrets_of(grader, layout, grader.case_sets(tmp_path)))
 
 
 def test_an_answer_that_would_inflate_is_refused_unread(layout, tmp_path, answer_key):
@@ -494,7 +496,7 @@ def test_feedback_shows_visible_failures_and_never_a_hidden_input(grader, layout
     assert entry["auto_earned"] == 0
     assert entry["first_failure"]["hidden"] is False and "x=" in entry["first_failure"]["input"]
     report = render(result)
-    for case_id, _, args in grader.cases["1.2.1"].hidden:
+    for case_id, _, args in grader.case_sets(tmp_path)["1.2.1"].hidden:  # its own hidden inputs
         assert show(args["x"]) not in report, case_id
     for line in grader._scrub.lines:
         assert line not in report

@@ -14,6 +14,7 @@ import pytest
 from hwtools.check_cell import check_lines
 from hwtools.grade import broker, checks, judging
 from hwtools.grade.class_feedback import todo_markdown
+from hwtools.grade.checks.verdicts import show
 from hwtools.grade.gradescope_autograder import _tests
 
 pytestmark = pytest.mark.timeout(120)
@@ -108,3 +109,27 @@ def test_1_1_1_has_scores_near_the_decision_boundary_on_visible_and_hidden_input
             if case_id.endswith("/h2"):  # the hand-chosen ties
                 continue
             assert (near > 0).any() and (near < 0).any(), case_id
+
+
+def test_hidden_inputs_are_drawn_per_submission_and_again_the_same_for_the_same_code():
+    from hwtools.grade import Grader
+    from hwtools.grade.grader import KIT_ROOT
+
+    grader = Grader(KIT_ROOT)
+    try:
+        ours, theirs = [["values = 1 / (1 + np.exp(-z))"]], [["values = 0.5 * (1 + np.tanh(z / 2))"]]
+        first, again, other = grader.case_set("2.2.1", ours), grader.case_set("2.2.1", [list(ours[0])]), \
+            grader.case_set("2.2.1", theirs)
+        assert [c for c, _, _ in first.visible] == [c for c, _, _ in other.visible]
+        visible = {c: show(args) for c, _, args in first.visible}
+        assert visible == {c: show(args) for c, _, args in other.visible}, "visible inputs are the same for everyone"
+        shown = [show(args) for _, _, args in first.hidden]
+        assert shown == [show(args) for _, _, args in again.hidden], "a regrade of the same code draws the same"
+        drawn = [show(args) for _, _, args in other.hidden]
+        assert len(shown) == len(drawn) and all(a != b for a, b in zip(shown, drawn)), "other code, other inputs"
+        # and the hand-chosen ones keep their structure: the hidden 1.1.1 ties still score exactly 0
+        for bodies in (ours, theirs):
+            *_, ties = [args for c, _, args in grader.case_set("1.1.1", bodies).hidden if c.startswith("1.1.1/equation-1/")]
+            assert not np.einsum("ij,ij->i", ties["params"], ties["obs"]).any()
+    finally:
+        grader.close()

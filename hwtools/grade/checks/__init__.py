@@ -69,6 +69,7 @@ class CaseSet:
     todo: str
     visible: list = field(default_factory=list)
     hidden: list = field(default_factory=list)
+    draw: str = ""  # what the hidden inputs were drawn from besides the instructor's seed (a code digest)
 
 
 def cases_of(behaviour):
@@ -78,16 +79,18 @@ def cases_of(behaviour):
     return next(other for other in BEHAVIOURS_BY_TODO[behaviour.todo] if other.key == behaviour.judged_on)
 
 
-def case_set(todo, hidden_module=None):
-    """The cases of ``todo``: ids "TODO/key/vN" (visible) and "TODO/key/hN" (hidden, from ``hidden_module``)."""
-    cases = CaseSet(todo)
+def case_set(todo, hidden_module=None, draw=""):
+    """The cases of ``todo``: ids "TODO/key/vN" (visible) and "TODO/key/hN" (hidden, from ``hidden_module``,
+    drawn for ``draw``: the grader passes the digest of a submission's code for ``todo``)."""
+    cases = CaseSet(todo, draw=draw)
     for behaviour in BEHAVIOURS_BY_TODO[todo]:
         if behaviour.judged_on:
             continue  # judged on the cases of another behaviour
         for number, args in enumerate(behaviour.visible_cases()):
             cases.visible.append((f"{behaviour.id}/v{number}", behaviour, args))
         if hidden_module is not None:
-            for number, args in enumerate(hidden_module.hidden_cases(behaviour)):
+            drawn = hidden_module.hidden_cases(behaviour, draw) if draw else hidden_module.hidden_cases(behaviour)
+            for number, args in enumerate(drawn):
                 cases.hidden.append((f"{behaviour.id}/h{number}", behaviour, args))
     return cases
 

@@ -65,13 +65,14 @@ def decodings(texts, rounds=3):
     return found
 
 
-def secrets_of(grader, layout):
+def secrets_of(grader, layout, case_sets=None):
     """What no output may hold: the lines of the reference's blocks (those not also in the kit's
-    public code) and the hidden inputs' numbers (as text, strong formats, and as float64 bytes)."""
+    public code) and the hidden inputs' numbers (as text, strong formats, and as float64 bytes) of
+    ``case_sets`` (a submission's: ``grader.case_sets(submission)``; default the grader's own)."""
     public = "\n".join(kits.composite_files(layout, {}, set()).values())
     lines = [line for line in grader._scrub.lines if line not in public]
     strong, weak, raw = set(), [], set()
-    for todo, cases in grader.cases.items():
+    for todo, cases in (case_sets or grader.cases).items():
         for case_id, _, args in cases.hidden:
             numbers = [float(v) for v in _floats(args) if abs(v) >= 1e-3 and len(f"{abs(v):.6g}".replace(".", "")) >= 5]
             for value in numbers:
