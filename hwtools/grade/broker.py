@@ -397,9 +397,13 @@ def run_cases(process, todo, visible, hidden, pool):
     ``process`` for TODO ``todo``; (Outcome, {case id: result}). ``pool``: the ReferencePool that
     answers served calls (None: none are answered)."""
     conversation, outcome, results, timeout = Conversation(process, todo, pool), Outcome(), {}, ""
+    if hidden and not visible:  # a run of hidden cases alone: from its setup on, nothing of it is shown
+        outcome.phase = "hidden"
     try:
         conversation.ask({"op": "setup", "mode": "worker", "todo": todo}, "ready")
         for phase, cases in (("visible", visible), ("hidden", hidden)):
+            if not cases and phase == "visible" and hidden:
+                continue
             outcome.phase = phase
             for case_id, probe, args in cases:
                 conversation.case_probe, conversation.case_args, conversation.records = probe, args, Records()

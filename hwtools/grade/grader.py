@@ -3,7 +3,8 @@
 This is the trusted side. It imports the standard library, numpy and the grader's own modules;
 never ``hwlib``, never anything from the submission. For each TODO T it builds a kit holding the
 student's blocks for T and a stub in every other block, and runs T's cases on it in a sandboxed
-worker (``broker.run_cases``). When the student's code calls another TODO's function (or
+worker (``broker.run_cases``): first the visible cases of every TODO, then, each in a run of its own,
+the hidden ones, drawn for the submission's code (``case_set``). When the student's code calls another TODO's function (or
 ``run_policy``), the worker forwards the call and the reference server answers it
 (``reference.py``, ``in_sandbox/served.py``): a mistake costs points only in the TODO where it was made,
 and no process that runs a student's code holds any reference solution. The reference's own
@@ -229,6 +230,8 @@ class Grader:
         budget = Budget(self.budget)
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+                if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
+                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
                 entries = dict(zip(graded, executor.map(
                     lambda todo: self._todo_entry(todo, read, layout, pool, budget), graded)))
             for todo in selected:
@@ -374,9 +377,36 @@ class Grader:
     def _reference_of(self, todo, cases=None):
         return self._reference_values(todo, cases) if self.reference is not None else None
 
+    def _visible_run(self, todo, read, layout, pool, budget, files=None):
+        """The run of ``todo``'s visible cases alone (memoized per code, as the known mistakes' runs;
+        a run its submission's budget stopped is not kept), or None when its code cannot run."""
+        if files is None:
+            try:
+                files = self._composite(todo, read, layout) if layout is not None else "no kit"
+            except Exception:  # noqa: BLE001 - _todo_entry gives the verdict
+                return None
+        if isinstance(files, str):
+            return None
+        return self._memoized(("visible", kits.files_digest(files), todo),
+                              lambda: self._run_now(todo, files, _phase(self.cases[todo].visible), [], pool, budget),
+                              keep=lambda run: not run[0].budget)
+
     def _run_and_judge(self, todo, files, pool, budget, notes, cases):
-        run = {"student": self._run_now(todo, files, _phase(cases.visible), _phase(cases.hidden), pool, budget),
-               "reference": self._reference_of(todo, cases)}
+        """Run and judge ``todo``. With hidden cases, two runs: the visible one (every TODO's ran before
+        this, ``grade``), then, only if that one ended well and answered something, the hidden one, so
+        that no run that can still send text back to a student begins after a run that saw a hidden
+        input. A hidden run that stops is a stop in the hidden phase (nothing of it is shown)."""
+        if not cases.hidden:
+            student = self._run_now(todo, files, _phase(cases.visible), [], pool, budget)
+        else:
+            outcome, results = self._visible_run(todo, None, None, pool, budget, files)
+            student = (outcome, dict(results))
+            if outcome.status == "ok" and any(result.get("status") == "ok" for result in results.values()):
+                hidden_outcome, hidden_results = self._run_now(todo, files, [], _phase(cases.hidden), pool, budget)
+                hidden_outcome.notes = list(dict.fromkeys(outcome.notes + hidden_outcome.notes))
+                hidden_outcome.seconds += outcome.seconds
+                student = (hidden_outcome, {**results, **hidden_results})
+        run = {"student": student, "reference": self._reference_of(todo, cases)}
         entry = self._judge(todo, run, pool, notes, cases)
         entry["_budget"] = run["student"][0].budget  # another submission with this code gets its own budget
         return entry

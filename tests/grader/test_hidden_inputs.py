@@ -133,3 +133,27 @@ def test_hidden_inputs_are_drawn_per_submission_and_again_the_same_for_the_same_
             assert not np.einsum("ij,ij->i", ties["params"], ties["obs"]).any()
     finally:
         grader.close()
+
+
+def test_every_visible_run_of_a_submission_comes_before_any_hidden_run(tmp_path, monkeypatch):
+    """No run that can still send text back to the student begins after a run that saw a hidden input."""
+    from hwtools.grade import Grader, blocks, kits
+    from hwtools.grade import grader as grading
+    from hwtools.grade.grader import KIT_ROOT
+
+    runs, real = [], broker.run_cases
+
+    def recorded(process, todo, visible, hidden, pool):
+        runs.append((todo, bool(visible), bool(hidden)))
+        return real(process, todo, visible, hidden, pool)
+
+    monkeypatch.setattr(grading.broker, "run_cases", recorded)
+    layout = blocks.load_layout(KIT_ROOT)
+    kits.write_submission(layout, tmp_path, {"2.2.1": "values = 0.5 * (1 + np.tanh(z / 2))"}, others="reference")
+    with Grader(KIT_ROOT) as grader:
+        result = grader.grade(tmp_path, todos=["1.1.1", "2.2.1", "2.2.2"])
+    assert [entry["auto_earned"] for entry in result["todos"]] == [2, 2, 3], result
+    assert not any(visible and hidden for _, visible, hidden in runs), runs
+    first_hidden = next(number for number, (_, _, hidden) in enumerate(runs) if hidden)
+    assert all(hidden for _, _, hidden in runs[first_hidden:]), runs
+    assert {todo for todo, visible, _ in runs if visible} == {todo for todo, _, hidden in runs if hidden}, runs
