@@ -262,8 +262,16 @@ def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class,
     assert "rejected: a path that leaves the submission" in feedback["traversal"]
     assert "Nothing of this submission was run" in feedback["huge"]
     assert "on a hidden input (hidden inputs are not shown" in feedback["cheat-hardcoded_visible"]
-    hidden_inputs = [show(value) for todo in checks.GRADED_TODOS for _, _, args in grader.cases[todo].hidden
-                     for value in args.values() if isinstance(value, np.ndarray) and np.unique(value).size >= 3]
+    case_sets = [grader.cases]  # and each folder submission's own hidden inputs (drawn for its code)
+    for folder in a_class.folder.iterdir():
+        if folder.is_dir() and (folder / "hwlib").is_dir() and not (folder / "hwlib").is_symlink():
+            try:
+                case_sets.append(grader.case_sets(folder))
+            except Exception:  # noqa: BLE001 - one the grader cannot read ran nothing
+                pass
+    assert len(case_sets) > 10
+    hidden_inputs = {show(value) for sets in case_sets for todo in checks.GRADED_TODOS for _, _, args in sets[todo].hidden
+                     for value in args.values() if isinstance(value, np.ndarray) and np.unique(value).size >= 3}
     assert hidden_inputs
     for student, text in feedback.items():
         for shown in hidden_inputs:
