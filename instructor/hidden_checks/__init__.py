@@ -60,6 +60,6 @@ def hidden_cases(behaviour, draw=""):
     submission's code for that TODO, so each submission gets its own hidden inputs (nothing one
     student's run could carry out serves another) and a regrade of the same code the same ones."""
     count = COUNTS.get(behaviour.id, behaviour.visible_count)
-    key = hmac.new(HIDDEN_SEED.to_bytes(8, "little"), f"{behaviour.id}\0{draw}".encode(), hashlib.sha256).digest()
+    key = hmac.new(str(HIDDEN_SEED).encode(), f"{behaviour.id}\0{draw}".encode(), hashlib.sha256).digest()
     rng = np.random.default_rng(int.from_bytes(key, "little"))
     return [behaviour.make(rng, variant) for variant in range(count)] + _extra_cases(behaviour.id, rng)
