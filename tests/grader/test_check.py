@@ -239,6 +239,44 @@ def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition
     assert "used the reference's code for TODOs 1.1.1, 1.2.1, 1.3.1, 1.3.2" in graded_notes
 
 
+def test_a_preview_holds_the_machines_turn_while_any_process_of_it_runs(wrong_edition, monkeypatch):
+    """Issue 30.7: the preview runs the student's own code in its runs and in the servers of its own
+    kit (1.3.2 calls the student's 1.2.1 there); every one of them begins and ends while the preview
+    holds the machine's one turn for student code, so none overlaps another grading's runs."""
+    from hwtools.grade import Grader, sandbox
+
+    turn, held, seen = sandbox._UNTRUSTED_RUN, [False], []
+
+    class Recorded:
+        def acquire(self):
+            turn.acquire()
+            held[0] = True
+
+        def release(self):
+            held[0] = False
+            turn.release()
+
+    begin, cleanup = sandbox.WorkerProcess.begin, sandbox.WorkerProcess._cleanup
+
+    def recorded_begin(self):
+        begin(self)
+        seen.append(("begin", held[0]))
+
+    def recorded_cleanup(self):
+        seen.append(("end", held[0]))
+        cleanup(self)
+
+    monkeypatch.setattr(sandbox, "_UNTRUSTED_RUN", Recorded())
+    monkeypatch.setattr(sandbox.WorkerProcess, "begin", recorded_begin)
+    monkeypatch.setattr(sandbox.WorkerProcess, "_cleanup", recorded_cleanup)
+    grader = Grader(answer_key=wrong_edition / "hwtools" / "grade" / "answer_key.json", isolation="none")
+    entry = grader.grade(wrong_edition, todos=["1.3.2"])["todos"][0]
+    assert entry["status"] == "graded", entry
+    assert seen.count(("begin", True)) >= 2, seen  # the run and a server of the student's own kit
+    assert all(during for _, during in seen), seen
+    assert not held[0]
+
+
 def test_a_check_cell_names_the_todo_at_fault(wrong_edition):
     lines = check_lines(grade_todo("1.3.2", kit=wrong_edition))
     assert "probably caused by TODO 1.2.1, which fails its own check" in " ".join(" ".join(lines[:2]).split()), lines
