@@ -23,6 +23,7 @@ import pytest
 
 from hwtools import check_cell
 from hwtools.check_cell import CheckError, check_lines, grade_todo
+from hwtools.grade import mistakes
 from hwtools.not_done import not_done_in_text, not_done_todo, untouched_todos
 from hwtools.notebook import assigned_names
 import editions
@@ -173,11 +174,12 @@ def wrong_solution(name):
 
 @pytest.fixture(scope="module")
 def wrong_edition(tmp_path_factory):
-    """A student edition with every solution but two wrong ones (and its answer key)."""
+    """A student edition with every solution but two wrong ones (and its answer key): flipped signs, as a
+    student may well write them (1 / (1 + e^z), f(x - h) - f(x + h))."""
     from hwtools.todos import TODO_BY_ID
 
     replace = {}
-    for name in ("sigmoid_wrong_sign.txt", "forward_difference.txt"):
+    for name in ("sigmoid_wrong_sign.txt", "finite_diff_flipped_sign.txt"):
         todo, file, code = wrong_solution(name)
         replace[(todo, file)] = code
     kit = tmp_path_factory.mktemp("wrong") / "kit"
@@ -199,6 +201,8 @@ def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_in
     assert not all(ok for _, ok, _ in visible(preview)), "a wrong solution fails a visible check"
     lines = check_lines(preview)
     assert any(line.startswith("  FAIL") for line in lines) and any("expected:" in line for line in lines)
+    named = {"2.2.1": "sigmoid_wrong_sign.txt", "1.2.1": "finite_diff_flipped_sign.txt"}[todo]  # the known mistake, in its words
+    assert mistakes.read_wrong_solution(WRONG / named).diagnosis in " ".join(" ".join(lines).split()), lines
 
 
 def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition, tmp_path):
