@@ -53,7 +53,7 @@ from pathlib import Path
 
 from hwtools.todos import TODO_BY_ID
 from instructor import gradescope_bundle
-from instructor.given_files import transform_pyproject
+from instructor.given_files import transform_pyproject, transform_requirements
 from instructor.kit import (HOMEWORK_FOLDERS, INSTRUCTOR_ONLY, STUDENT_TESTS, ReleaseError, file_blocks, find_blocks,
                             is_instructor_only, kit_files, read_text)
 from instructor.notebooks import transform_notebook
@@ -95,6 +95,8 @@ def student_files(source, keep=frozenset(), replace=None):
             text = transform_notebook(text, name, keep, file_replace, not_done=require_not_done)
         elif name == "pyproject.toml":
             text = transform_pyproject(text, name)
+        elif name == "requirements.txt":
+            text = transform_requirements(text, name)
         files["README.md" if name == STUDENT_README else name] = (data if text is None else text.encode("utf-8"), executable)
     missing = sorted(f"{file} (TODO {todo})" for todo, file in replace if file not in files)
     if missing:

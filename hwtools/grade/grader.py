@@ -168,7 +168,7 @@ class Grader:
         if self._exposed is None:
             self._exposed = []
             if self.reference is not None and self.sandbox.kind == "user":
-                from hwtools.grade.user_sandbox import readable_by_pool  # noqa: PLC0415 - the fallback only
+                from hwtools.grade.instructor.user_sandbox import readable_by_pool  # noqa: PLC0415 - the fallback only
 
                 secret = [self.reference / relative for relative in self.layout.blocks_by_file]
                 secret += [self.reference / HIDDEN_CHECKS] if (self.reference / HIDDEN_CHECKS).is_file() else []
@@ -265,8 +265,8 @@ class Grader:
         if not self.sandbox.isolated and self.isolation != "none":
             return (f"no sandbox works here, so no student code is run ({self.sandbox.how}). Fix the machine: install "
                     "bubblewrap (apt-get install bubblewrap), or, where it cannot create namespaces, as root create the "
-                    "fallback's users (python -m hwtools.grade.user_sandbox create) and give a Python they can run "
-                    "(python -m hwtools.grade.user_sandbox python FOLDER, then --python FOLDER/bin/python); or pass "
+                    "fallback's users (python -m hwtools.grade.instructor.user_sandbox create) and give a Python they can run "
+                    "(python -m hwtools.grade.instructor.user_sandbox python FOLDER, then --python FOLDER/bin/python); or pass "
                     "--isolation none to accept running untrusted code as yourself")
         exposed = self._exposure()
         if exposed:

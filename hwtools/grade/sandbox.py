@@ -65,9 +65,7 @@ lines do), so that nothing a worker sends can take the trusted side down.
 
 from __future__ import annotations
 
-import json
 import os
-import select
 import shutil
 import signal
 import subprocess
@@ -79,8 +77,8 @@ import uuid
 from contextlib import contextmanager
 from pathlib import Path
 
-from hwtools.grade.bwrap_sandbox import WORKER, bwrap_options, options_pipe, probe_isolation, worker_env
 from hwtools.grade.in_sandbox.channel import ChannelTimeout
+from hwtools.grade.kits import WORKER, worker_env
 from hwtools.grade.processes import Pipes, kill_tree
 
 try:  # macOS and Linux; Windows has neither (its runs have no CPU or memory limit, and the lock is per process)
@@ -88,6 +86,11 @@ try:  # macOS and Linux; Windows has neither (its runs have no CPU or memory lim
     import resource
 except ImportError:
     fcntl = resource = None
+try:  # the instructor's kit (the student edition has no sandbox: hwtools/grade/instructor/ is not in it)
+    from hwtools.grade.instructor.bwrap_sandbox import bwrap_options, options_pipe, probe_isolation, sandbox_init, wait_gone
+except ImportError:
+    probe_isolation = None
+NO_SANDBOX_HERE = "the student edition has no sandbox (the preview runs the student's own code, unsandboxed)"
 
 GiB = 1024**3
 DEFAULT_TIME_LIMIT = 60.0  # seconds of CPU time per worker run
@@ -187,7 +190,7 @@ class Sandbox:
         self.kind, self.how = "none", "isolation turned off (isolation='none')"
         reasons = []
         if isolation in ("auto", "bwrap"):
-            works, how = probe_isolation(self.python)
+            works, how = probe_isolation(self.python) if probe_isolation else (False, NO_SANDBOX_HERE)
             if works:
                 self.kind, self.how = "bwrap", how
             elif isolation == "bwrap":
@@ -195,7 +198,7 @@ class Sandbox:
             reasons.append(how)
         if isolation in ("auto", "user") and self.kind == "none":
             try:
-                from hwtools.grade import user_sandbox  # noqa: PLC0415 - also run as a command (python -m)
+                from hwtools.grade.instructor import user_sandbox  # noqa: PLC0415 - also run as a command (python -m)
             except ImportError as error:  # Windows: no users to run code as
                 works, how = False, f"not on this system ({error})"
             else:
@@ -212,7 +215,7 @@ class Sandbox:
         self.time_limit = float(time_limit)
         self.memory_limit = int(memory_limit)
         if self.isolated:
-            from hwtools.grade.cgroups import describe  # noqa: PLC0415 - Linux only
+            from hwtools.grade.instructor.cgroups import describe  # noqa: PLC0415 - Linux only
 
             self.how += "; " + describe(self.memory_limit)
 
@@ -227,7 +230,7 @@ class Sandbox:
         cpu = max(1, int(time_limit + 0.999))
         options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}", "--core=0"]
         if (kind or self.kind) == "user":
-            from hwtools.grade.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
+            from hwtools.grade.instructor.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
 
             options.append(f"--nproc={MAX_PROCESSES}")
         return options, [str(cpu), str(self.memory_limit)]
@@ -294,7 +297,7 @@ class WorkerProcess:
         env, cwd, fds, info = {}, self._scratch.name, (), None
         try:
             if self.kind == "user":
-                from hwtools.grade.user_sandbox import RunFolder  # noqa: PLC0415
+                from hwtools.grade.instructor.user_sandbox import RunFolder  # noqa: PLC0415
 
                 self._run_folder = RunFolder(kit_dir, WORKER)
                 env, cwd = worker_env(str(self._run_folder.home)), str(self._run_folder.home)
@@ -304,7 +307,7 @@ class WorkerProcess:
                 env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
             command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind)
             if self.kind != "none":  # the run as a whole bounded (processes, memory with tmpfs), where it can be
-                from hwtools.grade.cgroups import RunGroup  # noqa: PLC0415 - Linux only
+                from hwtools.grade.instructor.cgroups import RunGroup  # noqa: PLC0415 - Linux only
 
                 self.group = RunGroup.make(sandbox.memory_limit)
                 if self.group is not None:
@@ -323,7 +326,7 @@ class WorkerProcess:
                     os.close(fd)
             self._pipes = Pipes(self.process.stdin, self.process.stdout)  # every read and write has a deadline
             if info is not None:
-                self._init = _sandbox_init(info[0], self.process.pid)
+                self._init = sandbox_init(info[0], self.process.pid)
         except BaseException:
             self._cleanup()
             raise
@@ -409,7 +412,7 @@ class WorkerProcess:
             if self._run_folder is not None:
                 gone = self._run_folder.end()
             if self._init is not None:
-                gone = _wait_gone(self._init) and gone
+                gone = wait_gone(self._init, GONE_SECONDS) and gone
                 os.close(self._init)
                 self._init = None
             if self.group is not None:
@@ -430,44 +433,6 @@ class WorkerProcess:
                 self._holding = False
                 _UNTRUSTED_RUN.release()
             self.ended.set()
-
-
-def _sandbox_init(info_fd, bwrap_pid, wait=60.0):
-    """A pidfd of the bubblewrap sandbox's process-namespace init, read from ``bwrap --info-fd``
-    (None if bubblewrap ended before making it): when it has exited, every process of the sandbox
-    has (the kernel kills and reaps a namespace's processes before its init exits)."""
-    data, give_up = b"", time.monotonic() + wait
-    while time.monotonic() < give_up:
-        if not select.select([info_fd], [], [], give_up - time.monotonic())[0]:
-            continue
-        chunk = os.read(info_fd, 4096)
-        if not chunk:
-            break
-        data += chunk
-    try:
-        child = int(json.loads(data.decode())["child-pid"])
-        pidfd = os.pidfd_open(child)
-    except (ValueError, KeyError, TypeError, OSError):
-        return None
-    try:  # the pid is bubblewrap's child (not a process that reused a freed pid)
-        with open(f"/proc/{child}/stat", encoding="ascii", errors="replace") as stat:
-            parent = int(stat.read().rsplit(")", 1)[1].split()[1])
-    except (OSError, ValueError, IndexError):
-        parent = None
-    if parent != bwrap_pid:
-        os.close(pidfd)
-        return None
-    return pidfd
-
-
-def _wait_gone(pidfd):
-    """Kill the sandbox's init (and so every process of its namespace) and wait until it is gone;
-    False if it is still there after GONE_SECONDS."""
-    try:
-        signal.pidfd_send_signal(pidfd, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    return bool(select.select([pidfd], [], [], GONE_SECONDS)[0])
 
 
 def _finish(worker, deadline):
