@@ -11,8 +11,10 @@ markers (the grader reads the student's code from between them):
 * at module level (``settings.LEARNING_RATE``): ``NAME = None  # TODO x.y.z: <hint>`` for every
   name the block assigns, so the module still imports.
 
-In a notebook code cell a block becomes the hint, then its STUB lines or ``# YOUR CODE HERE`` and
-``raise NotImplementedError()``; in a Markdown cell, ``YOUR ANSWER HERE``.
+In a notebook code cell a block becomes the hint, then its STUB lines (the starting values a cell
+runs with) or, in a kit with ``TodoNotDone``, ``from hwlib import TodoNotDone`` and ``raise
+TodoNotDone("x.y.z")``: the cell stops with the same two lines as a library stub (in a kit without
+it, ``# YOUR CODE HERE`` and ``raise NotImplementedError()``). In a Markdown cell, ``YOUR ANSWER HERE``.
 """
 
 from __future__ import annotations
@@ -126,10 +128,13 @@ def _binds_not_done(text, path):
 # --------------------------------------------------------------------------------------------
 
 
-def notebook_code_stub(block, path):
+def notebook_code_stub(block, path, not_done=False):
+    """The student's start for a notebook block: its STUB lines, else (``not_done``: the kit has
+    ``TodoNotDone``, which ``hwlib`` exports) ``raise TodoNotDone("x.y.z")``, else a bare raise."""
     hint = _hint(block, NOTEBOOK_HINTS, path)
-    body = [f"{block.indent}{line}" for line in block.stub] or [f"{block.indent}# YOUR CODE HERE", f"{block.indent}raise NotImplementedError()"]
-    return todo_markers(block, [f"{block.indent}# TODO {block.todo}: {hint}", *body])
+    body = block.stub or ([f"from hwlib import {NOT_DONE}", f'raise {NOT_DONE}("{block.todo}")'] if not_done
+                          else ["# YOUR CODE HERE", "raise NotImplementedError()"])
+    return todo_markers(block, [f"{block.indent}# TODO {block.todo}: {hint}", *(f"{block.indent}{line}" for line in body)])
 
 
 def markdown_stub(block, path):

@@ -84,6 +84,19 @@ def test_instructor_files_are_left_out_and_the_rest_is_there(edition):
         assert (edition / ".ci" / "run").stat().st_mode & 0o111
 
 
+def test_the_editions_requirements_are_the_kits_without_the_instructors_own(edition):
+    """Issue 32.3: the edition installs what the student's side runs; a requirement whose comment
+    says "Instructor's kit only:" (the test command's -n 2) stays with the instructor."""
+    def requirements(text):
+        return [line.split(">")[0].split("=")[0] for line in text.splitlines() if line.strip() and not line.startswith("#")]
+
+    kit = requirements((REPO / "requirements.txt").read_text())
+    students = requirements((edition / "requirements.txt").read_text())
+    assert "pytest-xdist" in kit and "pytest-xdist" not in students
+    assert students == [name for name in kit if name != "pytest-xdist"]
+    assert "Instructor's kit only" not in (edition / "requirements.txt").read_text()
+
+
 def test_no_marker_and_no_solution_line_reaches_the_students(edition):
     for name in _tree(edition):
         if name.endswith((".py", ".ipynb")):
@@ -152,8 +165,12 @@ def test_every_module_of_the_student_edition_imports(edition):
     assert "hwlib.settings" in modules and not (edition / "instructor").exists()
     code = "import importlib, sys\nfor name in sys.argv[1:]:\n    importlib.import_module(name)\nimport hwlib\nprint(hwlib.__file__)"
     env = dict(os.environ, PYTHONPATH=str(edition), MPLBACKEND="Agg")
-    tools = ["hwtools", "hwtools.grade", "hwtools.report", "hwtools.todos"]
-    result = subprocess.run([sys.executable, "-c", code, "hwlib", *modules, *tools], cwd=edition, env=env, capture_output=True, text=True)
+    tools = sorted(".".join(path.relative_to(edition).with_suffix("").parts).removesuffix(".__init__")
+                   for path in (edition / "hwtools").rglob("*.py")  # its own files (walk_packages imports this kit's)
+                   if path.name != "__main__.py")  # a command's module runs the command
+    assert "hwtools.grade.sandbox" in tools and not any(".instructor" in name for name in tools)  # issue 32.3
+    result = subprocess.run([sys.executable, "-c", code, "hwlib", *modules, "hwtools", *tools], cwd=edition, env=env,
+                            capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
     assert Path(result.stdout.strip()).resolve().is_relative_to(edition.resolve())
 

@@ -33,7 +33,8 @@ import pytest
 from day_one import kit_env, student_python
 from hwtools import handin, markers
 from hwtools.not_done import untouched_todos
-from hwtools.grade import AUTO_POINTS, blocks, classroom, submissions
+from hwtools.grade import AUTO_POINTS, blocks, submissions
+from hwtools.grade.instructor import classroom
 from hwtools.todos import TODO_BY_ID
 from instructor.release import ReleaseError, kit_files, student_files
 
