@@ -5,7 +5,8 @@ whose every stub raises ``TodoNotDone`` when it runs, a notebook cell's too: the
 the release writes.
 
 ``student_python(folder)`` makes a Python like a student's, which has the kit's packages but not the
-instructor's tools.
+instructor's tools; ``student_python(folder, foreign=True)`` one whose kit code runs as on Windows
+(``foreign_os.py``), to be run with ``kit_env(kit, python)``.
 
 ``step_through(path)`` runs every code cell of a notebook in one kernel, on past errors, as a
 student pressing Shift-Enter through it does, and gives each cell's outputs.
@@ -16,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -38,22 +40,37 @@ def day_one_edition(out, tmp_path_factory=None, **options):
     return Path(out)
 
 
-def kit_env(kit):
-    """The environment in which the kit at ``kit`` (not this one) is what Python imports."""
-    return {**os.environ, "PYTHONPATH": str(kit), "MPLBACKEND": "Agg"}
+def kit_env(kit, python=None):
+    """The environment in which the kit at ``kit`` (not this one) is what Python imports; with the
+    ``python`` of ``student_python(..., foreign=True)``, its ``PATH`` has no bubblewrap, ``prlimit``
+    or Chromium."""
+    env = {**os.environ, "PYTHONPATH": str(kit), "MPLBACKEND": "Agg"}
+    if python is not None and (Path(python).parent.parent / FOREIGN_PROGRAMS).is_dir():
+        env["PATH"] = os.pathsep.join((str(Path(python).parent), str(Path(python).parent.parent / FOREIGN_PROGRAMS)))
+    return env
 
 
-def student_python(folder):
+FOREIGN_PROGRAMS = "foreign-programs"  # beside a foreign student Python's bin/: the programs its PATH holds
+
+
+def student_python(folder, foreign=False):
     """A Python like a student's, in the new folder ``folder``: a virtual environment with this
     environment's packages (those of requirements.txt) but not this kit's own (its editable install
-    is not read), so ``instructor`` cannot be imported. Run it with ``kit_env(edition)``: the edition
-    is then on its path, as the edition's own ``pip install -e .`` puts it."""
+    is not read), so ``instructor`` cannot be imported. Run it with ``kit_env(edition, python)``: the
+    edition is then on its path, as the edition's own ``pip install -e .`` puts it. ``foreign``: every
+    process of it takes Windows's gaps away from the kit's code (``foreign_os.py``)."""
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(folder)], check=True, timeout=300)
     python = Path(folder) / "bin" / "python"
     purelib = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
                              capture_output=True, text=True, check=True).stdout.strip()
     Path(purelib, "kit-packages.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     (Path(folder) / "share").symlink_to(Path(sys.prefix) / "share")  # Jupyter's data files (nbconvert's templates)
+    if foreign:
+        import foreign_os  # noqa: PLC0415 - not installed by importing it
+
+        shutil.copyfile(foreign_os.__file__, Path(purelib, "foreign_os.py"))
+        Path(purelib, "foreign-os.pth").write_text("import foreign_os; foreign_os.install()\n")
+        foreign_os.stripped_path(Path(folder) / FOREIGN_PROGRAMS)
     return python
 
 
