@@ -2,7 +2,15 @@
 command, filled with the reference solutions, and left with what editing leaves behind (JupyterLab's
 checkpoints of a library file and of a notebook, holding the stubs as first saved; an editor's backup
 ``logreg.py~``; vim's swap file ``.finite_diff.py.swp``). Then, with a Python that has the kit's
-packages but not the instructor's (``instructor`` cannot be imported):
+packages but not the instructor's (``instructor`` cannot be imported), and that takes from the kit's
+own code, in every process (the kernel, the grader, its workers), what Windows lacks (issue 32.7,
+``foreign_os.py``: the Unix-only modules and names, ``select()`` of a pipe, ``/proc``; no bubblewrap,
+``prlimit`` or Chromium on ``PATH``; made to fail once against the kit of 2780067: the edition's
+pytest had 12 notebook cells fail, each notebook's first cell at ``import fcntl``,
+``hwtools/grade/sandbox.py:63``, through ``hwtools.check_cell``, then ``check`` a NameError in every
+check cell; hand-in stopped at the same import; with that import made optional, ``limit_own_memory``
+stopped at ``resource``; and in today's edition, ``_kill_strays`` without its ``/proc`` check gives
+"the grader failed on this TODO's code (FileNotFoundError: ... '/proc')"):
 
 * the edition's own test command, ``python -m pytest`` (its unit tests and its notebooks), passes
   within its time limits;
@@ -68,7 +76,7 @@ def fill(kit):
 
 
 def run(python, kit, *args, timeout):
-    env = {key: value for key, value in kit_env(kit).items() if key != "PYTEST_ADDOPTS"}
+    env = {key: value for key, value in kit_env(kit, python).items() if key != "PYTEST_ADDOPTS"}
     return subprocess.run([str(python), *args], cwd=kit, env=env, capture_output=True, text=True, timeout=timeout)
 
 
@@ -86,7 +94,7 @@ def path(tmp_path_factory):
     for name in ("data.npz", "audio"):  # the course's data, where this kit has it, put where the student puts it
         if (KIT / "data" / name).exists():
             (kit / "data" / name).symlink_to((KIT / "data" / name).resolve())
-    python = student_python(root / "venv")
+    python = student_python(root / "venv", foreign=True)
     assert run(python, kit, "-c", "import instructor", timeout=120).returncode == 1
     return kit, python
 
