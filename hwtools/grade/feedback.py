@@ -67,7 +67,8 @@ def render(result, details=True):
     return "\n".join(lines) + "\n"
 
 
-FAILURE_FIELDS = ("mistake", "input", "reproduce", "expected", "actual", "difference", "tolerance")
+# What is wrong first (the known mistake, the values and where they differ), then the input and the line that rebuilds it.
+FAILURE_FIELDS = ("mistake", "expected", "actual", "difference", "tolerance", "input", "reproduce")
 UNWRAPPED = ("reproduce",)  # one line of Python, to copy: never wrapped
 
 
