@@ -199,7 +199,7 @@ def bench_sweep(style, function, num_loop_runs):
             loop_seconds += run_seconds
             same &= np.array_equal(looped.rewards, sweep.rewards[rate_index, seed_index])
     loop_total = loop_seconds / len(picks) * num_runs
-    print(f"  sweep, {style}: {seconds:.1f} s ({cpu:.1f} s CPU, load {os.getloadavg()[0]:.1f}) for "
+    print(f"  sweep, {style}: {seconds:.1f} s ({cpu:.1f} s CPU, load {getattr(os, 'getloadavg', lambda: (float('nan'),) * 3)()[0]:.1f}) for "
           f"{len(sweep.learning_rates)} rates x {len(sweep.seeds)} seeds (target <= 20 s on a quiet box); the loop {loop_seconds / len(picks):.1f} s per run ({len(picks)} runs) -> "
           f"{loop_total / 60:.0f} min; {loop_total / seconds:.0f}x (target >= 20x); identical rewards: {bool(same)}")
     return seconds, loop_total / seconds, bool(same)
@@ -312,7 +312,7 @@ def main(argv=None):
     args = parser.parse_args(argv)
     if args.grid:
         return 0 if bench_grid() else 1
-    load = ", ".join(f"{value:.1f}" for value in os.getloadavg())
+    load = ", ".join(f"{value:.1f}" for value in getattr(os, 'getloadavg', lambda: (float('nan'),) * 3)())
     print(f"{os.cpu_count()} cores, load average {load} (the machine may be shared: times are noisy, ratios less so)")
     ok = True
     if "random" not in args.skip:

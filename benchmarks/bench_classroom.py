@@ -29,7 +29,8 @@ import time
 import zipfile
 from pathlib import Path
 
-from hwtools.grade import AUTO_POINTS, Grader, blocks, classroom, kits, submissions, user_sandbox
+from hwtools.grade import AUTO_POINTS, Grader, blocks, kits, submissions
+from hwtools.grade.instructor import classroom, user_sandbox
 
 KIT = Path(__file__).resolve().parents[1]
 

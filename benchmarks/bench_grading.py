@@ -198,7 +198,7 @@ def main():
 def user_python(folder):
     """A Python the fallback's users can run, with this one's packages (the pool's users created)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    from hwtools.grade import user_sandbox  # noqa: PLC0415
+    from hwtools.grade.instructor import user_sandbox  # noqa: PLC0415
 
     user_sandbox.create_users()
     shared = Path(folder) / "user-python"

@@ -104,7 +104,7 @@ def main():
     grid_size = 11 if args.quick else GRID_SIZE
     loop_cells = args.loop_cells or (20 if args.quick else grid_size**2)
     repeats = 2 if args.quick else 5
-    load = ", ".join(f"{value:.1f}" for value in os.getloadavg())
+    load = ", ".join(f"{value:.1f}" for value in getattr(os, 'getloadavg', lambda: (float('nan'),) * 3)())
     print(f"{os.cpu_count()} cores, load average {load} (the machine may be shared: numbers are noisy); "
           f"{NUM_EPISODES} episodes per cell")
     for name, theta in THETAS.items():

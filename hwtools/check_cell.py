@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -38,6 +37,7 @@ from pathlib import Path
 
 from hwtools.grade.feedback import FAILURE_FIELDS, field_lines
 from hwtools.grade.judging import visible_view
+from hwtools.grade.processes import kill_tree
 from hwtools.not_done import KIT_ROOT, not_done_in_text, where
 from hwtools.todos import TODO_BY_ID
 
@@ -81,10 +81,7 @@ def grade_todo(todo, kit=KIT_ROOT, python=None, timeout=TIMEOUT):
 
 
 def _kill(process):
-    try:
-        os.killpg(process.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
+    kill_tree(process)
     process.wait()
 
 

@@ -11,7 +11,7 @@ At the zip's root:
   (``requirements.txt``: the kit's own lines for them); what runs later is made root's to write,
   ``source/`` root's alone; the log's last line says which isolation will grade;
 * ``run_autograder``: run for each submission; grades ``/autograder/submission`` with
-  ``python -m hwtools.grade.gradescope_autograder`` and writes ``/autograder/results/results.json``. Paths
+  ``python -m hwtools.grade.instructor.gradescope_autograder`` and writes ``/autograder/results/results.json``. Paths
   come from ``AUTOGRADER_ROOT`` (default ``/autograder``) and ``AUTOGRADER_PYTHON`` (default the
   venv's Python), so that a test can run it in a temporary folder laid out like ``/autograder``;
 * what they need: the instructor's ``hwlib/`` (the reference solution), ``hwtools/`` (the grader)
@@ -32,7 +32,7 @@ import sys
 import zipfile
 from pathlib import Path
 
-from hwtools.grade.user_sandbox import GRADED_PACKAGES as GRADING_REQUIREMENTS  # what hwlib imports in the worker
+from hwtools.grade.instructor.user_sandbox import GRADED_PACKAGES as GRADING_REQUIREMENTS  # what hwlib imports in the worker
 from instructor.kit import kit_files
 
 BUNDLED = ("hwlib/", "hwtools/", "instructor/hidden_checks/")  # path prefixes of the kit in the bundle
@@ -62,10 +62,10 @@ chmod +x "$SOURCE/run_autograder"
 cd "$SOURCE"
 "$ROOT/venv/bin/python" -c "import numpy, gymnasium, hwtools.grade"
 # The fallback's users (one per run at a time): hwgrade1..hwgrade8, no login, no home.
-"$ROOT/venv/bin/python" -m hwtools.grade.user_sandbox create
+"$ROOT/venv/bin/python" -m hwtools.grade.instructor.user_sandbox create
 # No folder but /tmp, /var/tmp, /dev/shm, /run/lock (emptied of a run's files after it) stays
 # writable by every user: nothing a run leaves there reaches a later run.
-"$ROOT/venv/bin/python" -m hwtools.grade.user_sandbox close-shared
+"$ROOT/venv/bin/python" -m hwtools.grade.instructor.user_sandbox close-shared
 # What runs later is root's to change: the sandbox's users may run the venv, never write it.
 chown -R root:root "$ROOT/venv" "$SOURCE"
 chmod -R go-w "$ROOT/venv" "$SOURCE"
@@ -89,7 +89,7 @@ ROOT="${AUTOGRADER_ROOT:-/autograder}"
 PYTHON="${AUTOGRADER_PYTHON:-$ROOT/venv/bin/python}"
 cd "$ROOT/source"
 export PYTHONPATH="$ROOT/source" PYTHONDONTWRITEBYTECODE=1 MPLBACKEND=Agg
-exec "$PYTHON" -m hwtools.grade.gradescope_autograder --root "$ROOT"
+exec "$PYTHON" -m hwtools.grade.instructor.gradescope_autograder --root "$ROOT"
 """
 
 
@@ -118,7 +118,7 @@ def grading_requirements(source):
 def bundle_files(source):
     """{name in the zip: (bytes, executable)} of the bundle for the instructor's kit at ``source``."""
     from hwtools.grade.grader import HIDDEN_CHECKS, has_solutions  # noqa: PLC0415 - numpy only when building
-    from hwtools.grade.gradescope_autograder import BUNDLE_MARKER  # noqa: PLC0415
+    from hwtools.grade.instructor.gradescope_autograder import BUNDLE_MARKER  # noqa: PLC0415
 
     source = Path(source).resolve()
     if not has_solutions(source):

@@ -24,6 +24,7 @@ STUDENT_TESTS = ("tests/conftest.py", "tests/unit/")
 # Left out of the student edition: path prefixes relative to the kit (folders end with "/").
 INSTRUCTOR_ONLY = (
     "instructor/",  # the release tool, hidden checks, wrong solutions: one folder
+    "hwtools/grade/instructor/",  # the grader's Linux sandboxes, class runs, gradebook and Gradescope: one folder
     # The instructor's guides and the measurements (the edition's README.md is docs/student-README.md:
     # STUDENT_README in instructor/release.py).
     "docs/",

@@ -15,8 +15,9 @@ from instructor.kit import SOLUTION, ReleaseError, find_blocks
 from instructor.stubs import check_replacements, markdown_stub, notebook_code_stub, replace_blocks
 
 
-def transform_notebook(text, path, keep=frozenset(), replace=None):
-    """The student version of a notebook's JSON text: stubs, no outputs, no stored widget state."""
+def transform_notebook(text, path, keep=frozenset(), replace=None, not_done=False):
+    """The student version of a notebook's JSON text: stubs, no outputs, no stored widget state.
+    ``not_done``: the kit defines ``TodoNotDone``, which a code cell's stub then raises."""
     try:
         notebook = markers.read_notebook(text, path)
     except markers.MarkerError as error:
@@ -35,7 +36,7 @@ def transform_notebook(text, path, keep=frozenset(), replace=None):
         blocks = []
         if info.kind == "code":
             blocks = find_blocks(lines, where, "code")
-            new_lines = replace_blocks(lines, blocks, keep, replace, lambda block: notebook_code_stub(block, path), seen)
+            new_lines = replace_blocks(lines, blocks, keep, replace, lambda block: notebook_code_stub(block, path, not_done), seen)
         elif info.kind == "markdown":
             blocks = find_blocks(lines, where, "markdown")
             new_lines = replace_blocks(lines, blocks, keep, replace, lambda block: markdown_stub(block, path), seen)

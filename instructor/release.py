@@ -18,10 +18,10 @@ edition
 * a fenced block in library code becomes the student's starting point between kept markers
   ``### BEGIN TODO 1.2.1`` / ``### END TODO 1.2.1``: the hint as a ``# TODO`` comment, the STUB
   lines and ``raise TodoNotDone("1.2.1")``, so the skeleton around it (signature, givens, return)
-  reads as the student's start; a module-level block becomes ``NAME = None  # TODO 1.3.3: <hint>``
-  (``instructor/stubs.py``);
-* a fenced block in a notebook code cell becomes ``# TODO <id>: <hint>``, ``# YOUR CODE HERE``,
-  ``raise NotImplementedError()`` (or its STUB lines) between the same kept markers; in a
+  reads as the student's start; a module-level block becomes the hint comment and ``NAME = None``
+  (``instructor/stubs.py``), its hint comment wrapped (``HINT_WIDTH``);
+* a fenced block in a notebook code cell becomes ``# TODO <id>: <hint>`` and its STUB lines, or
+  ``raise TodoNotDone("<id>")`` (imported from ``hwlib``), between the same kept markers; in a
   Markdown cell it becomes ``YOUR ANSWER HERE``; every notebook's outputs, execution counts,
   execution timings and stored widget state are cleared (``instructor/notebooks.py``);
 * instructor-only files (``INSTRUCTOR_ONLY`` in ``instructor/kit.py``: ``instructor/`` with this
@@ -53,7 +53,7 @@ from pathlib import Path
 
 from hwtools.todos import TODO_BY_ID
 from instructor import gradescope_bundle
-from instructor.given_files import transform_pyproject
+from instructor.given_files import transform_pyproject, transform_requirements
 from instructor.kit import (HOMEWORK_FOLDERS, INSTRUCTOR_ONLY, STUDENT_TESTS, ReleaseError, file_blocks, find_blocks,
                             is_instructor_only, kit_files, read_text)
 from instructor.notebooks import transform_notebook
@@ -92,9 +92,11 @@ def student_files(source, keep=frozenset(), replace=None):
         elif name.endswith(".py") and name.startswith(HOMEWORK_FOLDERS):
             text = transform_python(text, name, keep, file_replace, require_not_done=require_not_done)
         elif name.endswith(".ipynb"):
-            text = transform_notebook(text, name, keep, file_replace)
+            text = transform_notebook(text, name, keep, file_replace, not_done=require_not_done)
         elif name == "pyproject.toml":
             text = transform_pyproject(text, name)
+        elif name == "requirements.txt":
+            text = transform_requirements(text, name)
         files["README.md" if name == STUDENT_README else name] = (data if text is None else text.encode("utf-8"), executable)
     missing = sorted(f"{file} (TODO {todo})" for todo, file in replace if file not in files)
     if missing:

@@ -37,17 +37,14 @@ Where things are (``docs/design.md`` traces one grade through them):
   edition's key), ``feedback`` (the text report and the one wording of a failure);
 * what is checked: ``checks/`` (one module per problem, TODO by TODO: behaviours, points, inputs,
   probes, judges, tolerances; ``checks/verdicts``: how an answer is compared and shown);
-* the sandbox launchers: ``sandbox`` (a worker's process, its limits, one untrusted run at a
-  time), ``bwrap_sandbox`` (bubblewrap), ``user_sandbox`` and ``confine`` (the fallback without
-  namespaces: a user of its own per run, a seccomp filter);
+* the launcher: ``sandbox`` (a worker's process, its limits, one untrusted run at a time) and
+  ``processes`` (a worker's pipes with deadlines, the end of a process tree: on every system);
 * what runs inside the sandbox: ``in_sandbox/`` (copied whole into every kit as ``_hwgrade/``:
   the worker's loop, the probes, the served-call proxies, ``gym.make``'s served CartPole, the
   message format); it imports nothing from the trusted side;
-* a class: ``classroom`` (running one), ``submissions`` (reading a submission without trusting
-  it), ``gradebook``, ``class_feedback`` (Markdown), ``class_summary`` (each check's pass rate,
-  each named mistake's count), ``class_progress`` (the terminal's progress line), ``safe_text``;
-* Gradescope: ``gradescope_autograder`` (runs in its container; ``instructor/gradescope_bundle.py``
-  builds the bundle).
+* reading a submission without trusting it: ``submissions``; ``safe_text``;
+* the instructor's side, Linux's sandboxes and a class's grading: ``instructor/`` (its
+  ``__init__`` lists them), never in the student edition.
 
 ``hwtools.cases`` rebuilds a visible input in a student's kernel. The trusted side imports nothing
 from ``hwlib`` and nothing heavier than numpy.

@@ -37,7 +37,7 @@ def main(argv=None):
     parser.add_argument("--python", help="the Python that runs the homework's code (default: the reference kit's .venv)")
     parser.add_argument("--isolation", choices=("auto", "bwrap", "user", "none"), default="auto",
                         help="auto: bubblewrap where it works, else an unprivileged user per run where that is set up "
-                             "(as root: python -m hwtools.grade.user_sandbox create); with neither, a submission other "
+                             "(as root: python -m hwtools.grade.instructor.user_sandbox create); with neither, a submission other "
                              "than the reference kit itself is refused (the student edition's preview runs unsandboxed "
                              "and says NOT ISOLATED); bwrap, user: refuse to run without that one; none: no sandbox, "
                              "you accept running untrusted code as yourself")
@@ -60,8 +60,11 @@ def main(argv=None):
     one_zip = submission.is_file() and submission.suffix.lower() == ".zip"
     if not (submission / "hwlib").is_dir() and not one_zip:
         if submission.is_dir():
-            from hwtools.grade import classroom  # noqa: PLC0415 - a folder of submissions
-
+            try:
+                from hwtools.grade.instructor import classroom  # noqa: PLC0415 - a folder of submissions
+            except ImportError:
+                parser.error(f"{submission}: a folder of submissions is graded with the instructor's kit; this one "
+                             "(the student edition) grades one kit or one zip")
             return classroom.main(args, parser)
         parser.error(f"{submission}: neither a kit's folder (with hwlib/), nor a .zip, nor a folder of submissions")
     if args.gradebook or args.feedback:

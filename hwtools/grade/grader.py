@@ -18,6 +18,7 @@ same runs, so the preview gives the instructor's verdict wherever the other TODO
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import hashlib
 import importlib.util
@@ -167,7 +168,7 @@ class Grader:
         if self._exposed is None:
             self._exposed = []
             if self.reference is not None and self.sandbox.kind == "user":
-                from hwtools.grade.user_sandbox import readable_by_pool  # noqa: PLC0415 - the fallback only
+                from hwtools.grade.instructor.user_sandbox import readable_by_pool  # noqa: PLC0415 - the fallback only
 
                 secret = [self.reference / relative for relative in self.layout.blocks_by_file]
                 secret += [self.reference / HIDDEN_CHECKS] if (self.reference / HIDDEN_CHECKS).is_file() else []
@@ -225,22 +226,24 @@ class Grader:
             read = blocks.Submission(submission, problems={todo: why for todo in TODO_BY_ID})
         if self.reference is not None:  # without a reference the submission's own files are what runs
             result["notes"].extend(read.notes)
-        pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
-        graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
-        budget = Budget(self.budget)
-        try:
-            with ThreadPoolExecutor(max_workers=self.jobs) as executor:
-                if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
-                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
-                entries = dict(zip(graded, executor.map(
-                    lambda todo: self._todo_entry(todo, read, layout, pool, budget), graded)))
-            for todo in selected:
-                result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
-                                                                               self._scrub, self._limits, []))
-            self._blame(result["todos"], read, layout, pool, budget)
-        finally:
-            if pool is not None and pool is not self.pool:
-                pool.close()
+        # A preview runs the student's own code in servers beside its runs: it holds the machine's turn throughout.
+        with self.sandbox.whole_turn() if self.reference is None else contextlib.nullcontext():
+            pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
+            graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
+            budget = Budget(self.budget)
+            try:
+                with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+                    if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
+                        list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
+                    entries = dict(zip(graded, executor.map(
+                        lambda todo: self._todo_entry(todo, read, layout, pool, budget), graded)))
+                for todo in selected:
+                    result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
+                                                                                   self._scrub, self._limits, []))
+                self._blame(result["todos"], read, layout, pool, budget)
+            finally:
+                if pool is not None and pool is not self.pool:
+                    pool.close()
         entries = result["todos"]
         result["total"] = {
             "auto_earned": round(sum(entry["auto_earned"] for entry in entries), 2),
@@ -262,8 +265,8 @@ class Grader:
         if not self.sandbox.isolated and self.isolation != "none":
             return (f"no sandbox works here, so no student code is run ({self.sandbox.how}). Fix the machine: install "
                     "bubblewrap (apt-get install bubblewrap), or, where it cannot create namespaces, as root create the "
-                    "fallback's users (python -m hwtools.grade.user_sandbox create) and give a Python they can run "
-                    "(python -m hwtools.grade.user_sandbox python FOLDER, then --python FOLDER/bin/python); or pass "
+                    "fallback's users (python -m hwtools.grade.instructor.user_sandbox create) and give a Python they can run "
+                    "(python -m hwtools.grade.instructor.user_sandbox python FOLDER, then --python FOLDER/bin/python); or pass "
                     "--isolation none to accept running untrusted code as yourself")
         exposed = self._exposure()
         if exposed:

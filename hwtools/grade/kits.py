@@ -24,6 +24,7 @@ from hwtools import markers
 from hwtools.grade.blocks import parse, reindent
 
 IN_SANDBOX = Path(__file__).resolve().parent / "in_sandbox"
+WORKER = IN_SANDBOX / "worker.py"  # the entry point of every sandboxed process
 SANDBOXED_PACKAGE = "_hwgrade"  # the name the folder in_sandbox/ has in a kit
 
 
@@ -196,3 +197,15 @@ def write_submission(layout, out_dir, bodies=None, others="stub", style="TODO"):
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(compose_file(text, file_blocks, choose) if file_blocks else text, encoding="utf-8")
     return out_dir
+
+
+def worker_env(home):
+    """The only environment a worker gets, with its home folder ``home`` (on Windows also the
+    system's folder, which Python needs to start, and its temporary folder in ``home``)."""
+    env = {"PATH": "/usr/bin:/bin", "HOME": home, "TMPDIR": "/tmp" if home.startswith("/tmp/") else home,
+           "LANG": "C.UTF-8", "MPLBACKEND": "Agg", "PYTHONHASHSEED": "0", "PYTHONDONTWRITEBYTECODE": "1",
+           "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    if os.name == "nt":
+        env |= {"SYSTEMROOT": os.environ.get("SYSTEMROOT", r"C:\Windows"), "TEMP": home, "TMP": home,
+                "USERPROFILE": home, "PATH": os.environ.get("PATH", "")}
+    return env

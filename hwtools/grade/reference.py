@@ -42,6 +42,7 @@ LIFETIME = 3600.0  # seconds a server lives at most (its wall-clock and CPU limi
 SETUP_SECONDS = 120.0  # to start and import the kit
 IDLE_SECONDS = 10.0  # an unused server ends after this long
 KEEP = 4  # idle servers kept at most
+CLOSE_SECONDS = 60.0  # for a closed server's processes to be gone
 
 
 class ServerFailed(Exception):
@@ -164,6 +165,7 @@ class ReferencePool:
         self.files = dict(files) | kits.sandboxed_files()
         self.digest = kits.files_digest(self.files)
         self._folder, self._idle, self._lock, self._timer, self._closed = None, [], threading.Lock(), None, False
+        self._made = []  # the servers started and not known to have ended
 
     def _kit(self):
         if self._folder is None:
@@ -182,7 +184,10 @@ class ReferencePool:
                     return server
                 threading.Thread(target=server.close, daemon=True).start()
             kit = self._kit()
-        return ReferenceServer(self.sandbox, kit, max(self.lifetime, need + SETUP_SECONDS + 60), self.trusted)
+        server = ReferenceServer(self.sandbox, kit, max(self.lifetime, need + SETUP_SECONDS + 60), self.trusted)
+        with self._lock:
+            self._made = [made for made in self._made if not made.process.ended.is_set()] + [server]
+        return server
 
     def release(self, server, broken=False):
         if server is None:
@@ -237,6 +242,9 @@ class ReferencePool:
                 self._timer = None
         for server in idle:
             server.close()
+        for server in self._made:  # those closing elsewhere too: every process of this pool is gone on return
+            server.close()
+            server.process.ended.wait(CLOSE_SECONDS)
         if self._folder is not None:
             kits.remove_tree(self._folder)
             self._folder = None

@@ -40,7 +40,10 @@ the grader sends, before any code of the kit is imported) only once the run befo
 and every process of it is dead: the sandbox's process-namespace init gone (bubblewrap), no
 process of the run's user left (the user fallback). Trusted work runs alongside: the reference
 servers (``trusted=True``, no student code), judging, reading submissions. A run's wall-clock
-clock starts when it begins.
+clock starts when it begins. A preview (no reference: the student's own code in its runs and in
+the servers of its own kit at once) holds the turn for its whole grade (``Sandbox.whole_turn``).
+On Windows there is no ``flock``: the turn is kept within one grading process only (class
+gradings are Linux's).
 
 Every run has a CPU-time limit, an address-space limit, a file-size limit (``prlimit`` before the
 worker starts, and again by the worker itself before it imports the kit), and a wall-clock
@@ -49,10 +52,12 @@ waits: a loaded machine slows a run down without turning it into a time-out. The
 submission share a wall-clock ``Budget`` too: a run that begins with less of it left than its
 backstop ends when the budget does, and one that begins with none left does not run. The worker's
 error stream goes to a file, never a pipe, so a child that keeps it open cannot hold the grader;
-every read of the answers and every write of a request ends at the run's deadline (the requests'
-pipe is non-blocking), so a worker that stops reading is killed then. At the end the whole
-sandbox is killed (the process namespace, the run's user, or the process group and an environment
-token).
+every read of the answers and every write of a request ends at the run's deadline (each pipe has
+a thread of its own, ``processes.Pipes``: Windows cannot ``select()`` a pipe), so a worker that
+stops reading is killed then. At the end the whole sandbox is killed (the process namespace, the
+run's user, or the process group and an environment token; on Windows the process tree, and on
+macOS and Windows, without ``/proc``, no environment token is looked for). Windows has no CPU-time,
+address-space or file-size limit: there the wall-clock backstop ends a run.
 
 The grader's own process can be put under a memory limit too (``limit_own_memory``; the command
 lines do), so that nothing a worker sends can take the trusted side down.
@@ -60,11 +65,7 @@ lines do), so that nothing a worker sends can take the trusted side down.
 
 from __future__ import annotations
 
-import fcntl
-import json
 import os
-import resource
-import select
 import shutil
 import signal
 import subprocess
@@ -73,11 +74,23 @@ import tempfile
 import threading
 import time
 import uuid
+from contextlib import contextmanager
 from pathlib import Path
 
-from hwtools.grade.bwrap_sandbox import WORKER, bwrap_options, options_pipe, probe_isolation, worker_env
-from hwtools.grade.in_sandbox import channel
 from hwtools.grade.in_sandbox.channel import ChannelTimeout
+from hwtools.grade.kits import WORKER, worker_env
+from hwtools.grade.processes import Pipes, kill_tree
+
+try:  # macOS and Linux; Windows has neither (its runs have no CPU or memory limit, and the lock is per process)
+    import fcntl
+    import resource
+except ImportError:
+    fcntl = resource = None
+try:  # the instructor's kit (the student edition has no sandbox: hwtools/grade/instructor/ is not in it)
+    from hwtools.grade.instructor.bwrap_sandbox import bwrap_options, options_pipe, probe_isolation, sandbox_init, wait_gone
+except ImportError:
+    probe_isolation = None
+NO_SANDBOX_HERE = "the student edition has no sandbox (the preview runs the student's own code, unsandboxed)"
 
 GiB = 1024**3
 DEFAULT_TIME_LIMIT = 60.0  # seconds of CPU time per worker run
@@ -101,11 +114,12 @@ class _OneRunAtATime:
     def acquire(self):
         self._thread.acquire()
         try:
-            if self._fd is None:
+            if self._fd is None and fcntl is not None:
                 folder = Path.home() / ".cache" / "hwgrade"
                 folder.mkdir(mode=0o700, parents=True, exist_ok=True)
                 self._fd = os.open(folder / "untrusted-run.lock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
-            fcntl.flock(self._fd, fcntl.LOCK_EX)
+            if self._fd is not None:
+                fcntl.flock(self._fd, fcntl.LOCK_EX)
         except OSError as error:
             self._thread.release()
             raise RuntimeError(f"no run begins: the lock that keeps runs of student code apart ({error}); the "
@@ -115,7 +129,8 @@ class _OneRunAtATime:
             raise
 
     def release(self):
-        fcntl.flock(self._fd, fcntl.LOCK_UN)
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
         self._thread.release()
 
 
@@ -147,7 +162,9 @@ def wall_limit(time_limit):
 
 def limit_own_memory(limit=GRADER_MEMORY_LIMIT):
     """Put this (the trusted) process under an address-space limit of ``limit`` bytes, unless a
-    lower one is already set; returns the limit in force."""
+    lower one is already set; returns the limit in force (None on Windows, which has no such limit)."""
+    if resource is None:
+        return None
     soft, hard = resource.getrlimit(resource.RLIMIT_AS)
     if hard != resource.RLIM_INFINITY:
         limit = min(limit, hard)
@@ -173,16 +190,19 @@ class Sandbox:
         self.kind, self.how = "none", "isolation turned off (isolation='none')"
         reasons = []
         if isolation in ("auto", "bwrap"):
-            works, how = probe_isolation(self.python)
+            works, how = probe_isolation(self.python) if probe_isolation else (False, NO_SANDBOX_HERE)
             if works:
                 self.kind, self.how = "bwrap", how
             elif isolation == "bwrap":
                 raise RuntimeError(f"no sandbox: {how}")
             reasons.append(how)
         if isolation in ("auto", "user") and self.kind == "none":
-            from hwtools.grade import user_sandbox  # noqa: PLC0415 - also run as a command (python -m)
-
-            works, how = user_sandbox.probe(self.python)
+            try:
+                from hwtools.grade.instructor import user_sandbox  # noqa: PLC0415 - also run as a command (python -m)
+            except ImportError as error:  # Windows: no users to run code as
+                works, how = False, f"not on this system ({error})"
+            else:
+                works, how = user_sandbox.probe(self.python)
             if works:
                 self.kind, self.how = "user", f"{how} (bubblewrap: {reasons[0]})" if reasons else how
             elif isolation == "user":
@@ -191,10 +211,11 @@ class Sandbox:
         if self.kind == "none" and isolation == "auto":
             self.how = "; ".join(reasons)
         self.isolated = self.kind != "none"
+        self._whole_turn = False
         self.time_limit = float(time_limit)
         self.memory_limit = int(memory_limit)
         if self.isolated:
-            from hwtools.grade.cgroups import describe  # noqa: PLC0415 - Linux only
+            from hwtools.grade.instructor.cgroups import describe  # noqa: PLC0415 - Linux only
 
             self.how += "; " + describe(self.memory_limit)
 
@@ -209,7 +230,7 @@ class Sandbox:
         cpu = max(1, int(time_limit + 0.999))
         options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}", "--core=0"]
         if (kind or self.kind) == "user":
-            from hwtools.grade.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
+            from hwtools.grade.instructor.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
 
             options.append(f"--nproc={MAX_PROCESSES}")
         return options, [str(cpu), str(self.memory_limit)]
@@ -236,8 +257,25 @@ class Sandbox:
         code (a reference server, ``run_kind``). ``exclusive`` (default: not trusted): the run
         begins only when no other exclusive run of this process is alive (the module docstring);
         ``budget``: the submission's ``Budget``."""
-        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit), trusted,
-                             (not trusted) if exclusive is None else exclusive, budget)
+        if exclusive is None:
+            exclusive = not trusted and not self._whole_turn
+        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit), trusted, exclusive, budget)
+
+    @contextmanager
+    def whole_turn(self):
+        """Hold the machine's one turn for student code (the module docstring) around a whole
+        preview: the student's own code runs there in several processes at once (its runs and the
+        servers of its own kit, one student's code and no hidden input), and none of them takes
+        the turn itself, so none overlaps another grading's runs."""
+        _UNTRUSTED_RUN.acquire()
+        try:
+            if _SURVIVORS:
+                raise RuntimeError(f"no run begins: {_SURVIVORS[0]}")
+            self._whole_turn = True
+            yield
+        finally:
+            self._whole_turn = False
+            _UNTRUSTED_RUN.release()
 
 
 class WorkerProcess:
@@ -255,10 +293,11 @@ class WorkerProcess:
         self._token = uuid.uuid4().hex
         self._run_folder = self._init = self.group = None
         self.memory_peak = None  # bytes the whole run held at most, where it ran in a cgroup
+        self.ended = threading.Event()  # set once the run's processes are gone (or given up on) and its turn is free
         env, cwd, fds, info = {}, self._scratch.name, (), None
         try:
             if self.kind == "user":
-                from hwtools.grade.user_sandbox import RunFolder  # noqa: PLC0415
+                from hwtools.grade.instructor.user_sandbox import RunFolder  # noqa: PLC0415
 
                 self._run_folder = RunFolder(kit_dir, WORKER)
                 env, cwd = worker_env(str(self._run_folder.home)), str(self._run_folder.home)
@@ -268,7 +307,7 @@ class WorkerProcess:
                 env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
             command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind)
             if self.kind != "none":  # the run as a whole bounded (processes, memory with tmpfs), where it can be
-                from hwtools.grade.cgroups import RunGroup  # noqa: PLC0415 - Linux only
+                from hwtools.grade.instructor.cgroups import RunGroup  # noqa: PLC0415 - Linux only
 
                 self.group = RunGroup.make(sandbox.memory_limit)
                 if self.group is not None:
@@ -285,9 +324,9 @@ class WorkerProcess:
             finally:
                 for fd in fds:
                     os.close(fd)
-            os.set_blocking(self.process.stdin.fileno(), False)  # every write has a deadline (send)
+            self._pipes = Pipes(self.process.stdin, self.process.stdout)  # every read and write has a deadline
             if info is not None:
-                self._init = _sandbox_init(info[0], self.process.pid)
+                self._init = sandbox_init(info[0], self.process.pid)
         except BaseException:
             self._cleanup()
             raise
@@ -324,7 +363,7 @@ class WorkerProcess:
         self.begin()
         deadline = self.deadline if deadline is None else min(deadline, self.deadline)
         try:
-            channel.write_message(self.process.stdin.fileno(), message, deadline)
+            self._pipes.send(message, deadline)
         except ChannelTimeout:
             raise ChannelTimeout(BUDGET_WORDS if self._budget_bound else
                                  f"the wall-clock limit of {wall_limit(self.time_limit):.0f} s was reached "
@@ -333,7 +372,7 @@ class WorkerProcess:
     def receive(self, deadline=None):
         """The next answer (a dict), or "status:detail" (timeout, ended, garbled)."""
         deadline = self.deadline if deadline is None else min(deadline, self.deadline)
-        answer = _read_answer(self.process.stdout.fileno(), deadline)
+        answer = self._pipes.receive(deadline)
         if answer == "ended:" and self._cpu_limit_reached():
             return f"timeout:the CPU-time limit of {self.sandbox.limits(self.time_limit, self.kind)[1][0]} s was reached"
         if isinstance(answer, str) and answer.startswith("timeout:"):
@@ -351,6 +390,8 @@ class WorkerProcess:
             return False
         if self.group is not None and self.group.oom_kills():
             return False  # killed for the run's memory bound, not the CPU limit
+        if resource is None:
+            return False  # no CPU-time limit on this system
         return not self._killed and code in (-signal.SIGKILL, 128 + signal.SIGKILL)
 
     def finish(self, graceful=True):
@@ -371,7 +412,7 @@ class WorkerProcess:
             if self._run_folder is not None:
                 gone = self._run_folder.end()
             if self._init is not None:
-                gone = _wait_gone(self._init) and gone
+                gone = wait_gone(self._init, GONE_SECONDS) and gone
                 os.close(self._init)
                 self._init = None
             if self.group is not None:
@@ -391,104 +432,26 @@ class WorkerProcess:
             if self._holding:
                 self._holding = False
                 _UNTRUSTED_RUN.release()
-
-
-def _sandbox_init(info_fd, bwrap_pid, wait=60.0):
-    """A pidfd of the bubblewrap sandbox's process-namespace init, read from ``bwrap --info-fd``
-    (None if bubblewrap ended before making it): when it has exited, every process of the sandbox
-    has (the kernel kills and reaps a namespace's processes before its init exits)."""
-    data, give_up = b"", time.monotonic() + wait
-    while time.monotonic() < give_up:
-        if not select.select([info_fd], [], [], give_up - time.monotonic())[0]:
-            continue
-        chunk = os.read(info_fd, 4096)
-        if not chunk:
-            break
-        data += chunk
-    try:
-        child = int(json.loads(data.decode())["child-pid"])
-        pidfd = os.pidfd_open(child)
-    except (ValueError, KeyError, TypeError, OSError):
-        return None
-    try:  # the pid is bubblewrap's child (not a process that reused a freed pid)
-        with open(f"/proc/{child}/stat", encoding="ascii", errors="replace") as stat:
-            parent = int(stat.read().rsplit(")", 1)[1].split()[1])
-    except (OSError, ValueError, IndexError):
-        parent = None
-    if parent != bwrap_pid:
-        os.close(pidfd)
-        return None
-    return pidfd
-
-
-def _wait_gone(pidfd):
-    """Kill the sandbox's init (and so every process of its namespace) and wait until it is gone;
-    False if it is still there after GONE_SECONDS."""
-    try:
-        signal.pidfd_send_signal(pidfd, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    return bool(select.select([pidfd], [], [], GONE_SECONDS)[0])
-
-
-def _read_answer(fd, deadline):
-    """The next message on ``fd``, or "status:detail" if none comes in time or it is not valid."""
-    buffer = b""
-    need = 8
-    length = None
-    while True:
-        remaining = deadline - time.monotonic()
-        if remaining <= 0:
-            return "timeout:the wall-clock limit was reached"
-        ready, _, _ = select.select([fd], [], [], remaining)
-        if not ready:
-            continue
-        chunk = os.read(fd, min(1 << 20, need - len(buffer)))
-        if not chunk:
-            return "ended:"
-        buffer += chunk
-        if len(buffer) < need:
-            continue
-        if length is None:
-            length = int.from_bytes(buffer[:8], "big")
-            if length > channel.MAX_MESSAGE_BYTES:
-                return f"garbled:an answer of {length} bytes, more than the {channel.MAX_MESSAGE_BYTES} accepted"
-            buffer, need = b"", length
-            if length == 0:
-                return "garbled:an empty answer"
-            continue
-        try:
-            answer = channel.unpack(buffer)
-        except Exception as error:  # noqa: BLE001 - anything the worker's side wrote is untrusted
-            return f"garbled:an answer that is not a valid message ({type(error).__name__})"
-        if not isinstance(answer, dict):
-            return "garbled:an answer that is not a message"
-        return answer
+            self.ended.set()
 
 
 def _finish(worker, deadline):
     """Wait for the worker until ``deadline``, then kill its whole process group; the exit code."""
     process = worker.process
-    try:
-        process.stdin.close()
-    except OSError:
-        pass
+    worker._pipes.end_requests()
     try:
         process.wait(timeout=max(0.0, min(deadline - time.monotonic(), 10.0)))
     except subprocess.TimeoutExpired:
         pass
     if process.returncode is None:
         worker._killed = True
-    try:
-        os.killpg(process.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
+    kill_tree(process)
     try:  # SIGKILL from root ends a stopped process too: only a process stuck in the kernel stays
         code = process.wait(timeout=GONE_SECONDS)
     except subprocess.TimeoutExpired:
         code = None
         _SURVIVORS.append("a worker did not end after SIGKILL")
-    process.stdout.close()
+    worker._pipes.close()
     return code
 
 
@@ -502,7 +465,10 @@ def _tail(stream):
 def _kill_strays(token, rounds=5):
     """Without a sandbox: kill every process that still carries this run's token in its
     environment (children that left the worker's process group), until a scan finds none. A
-    child that clears its environment escapes this: only a sandbox ends every process."""
+    child that clears its environment escapes this: only a sandbox ends every process. (Where there
+    is no ``/proc``, macOS and Windows, the kill of the process group or tree is all there is.)"""
+    if not os.path.isdir("/proc"):
+        return
     needle = f"{TOKEN_VARIABLE}={token}".encode()
     for _ in range(rounds):
         killed = 0

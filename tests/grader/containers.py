@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from hwtools.grade import user_sandbox
+from hwtools.grade.instructor import user_sandbox
 
 # What bubblewrap prints, as root in a container whose seccomp profile refuses unshare(CLONE_NEWUSER).
 DOCKER_BWRAP = """#!/bin/sh

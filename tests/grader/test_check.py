@@ -23,6 +23,7 @@ import pytest
 
 from hwtools import check_cell
 from hwtools.check_cell import CheckError, check_lines, grade_todo
+from hwtools.grade import mistakes
 from hwtools.not_done import not_done_in_text, not_done_todo, untouched_todos
 from hwtools.notebook import assigned_names
 import editions
@@ -173,11 +174,12 @@ def wrong_solution(name):
 
 @pytest.fixture(scope="module")
 def wrong_edition(tmp_path_factory):
-    """A student edition with every solution but two wrong ones (and its answer key)."""
+    """A student edition with every solution but two wrong ones (and its answer key): flipped signs, as a
+    student may well write them (1 / (1 + e^z), f(x - h) - f(x + h))."""
     from hwtools.todos import TODO_BY_ID
 
     replace = {}
-    for name in ("sigmoid_wrong_sign.txt", "forward_difference.txt"):
+    for name in ("sigmoid_wrong_sign.txt", "finite_diff_flipped_sign.txt"):
         todo, file, code = wrong_solution(name)
         replace[(todo, file)] = code
     kit = tmp_path_factory.mktemp("wrong") / "kit"
@@ -199,6 +201,8 @@ def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_in
     assert not all(ok for _, ok, _ in visible(preview)), "a wrong solution fails a visible check"
     lines = check_lines(preview)
     assert any(line.startswith("  FAIL") for line in lines) and any("expected:" in line for line in lines)
+    named = {"2.2.1": "sigmoid_wrong_sign.txt", "1.2.1": "finite_diff_flipped_sign.txt"}[todo]  # the known mistake, in its words
+    assert mistakes.read_wrong_solution(WRONG / named).diagnosis in " ".join(" ".join(lines).split()), lines
 
 
 def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition, tmp_path):
@@ -233,6 +237,44 @@ def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition
     assert "used your own code for TODOs 1.1.1, 1.2.1, 1.3.1, 1.3.2" in notes
     graded_notes = " ".join(next(e for e in graded["todos"] if e["id"] == "1.3.3")["notes"])
     assert "used the reference's code for TODOs 1.1.1, 1.2.1, 1.3.1, 1.3.2" in graded_notes
+
+
+def test_a_preview_holds_the_machines_turn_while_any_process_of_it_runs(wrong_edition, monkeypatch):
+    """Issue 30.7: the preview runs the student's own code in its runs and in the servers of its own
+    kit (1.3.2 calls the student's 1.2.1 there); every one of them begins and ends while the preview
+    holds the machine's one turn for student code, so none overlaps another grading's runs."""
+    from hwtools.grade import Grader, sandbox
+
+    turn, held, seen = sandbox._UNTRUSTED_RUN, [False], []
+
+    class Recorded:
+        def acquire(self):
+            turn.acquire()
+            held[0] = True
+
+        def release(self):
+            held[0] = False
+            turn.release()
+
+    begin, cleanup = sandbox.WorkerProcess.begin, sandbox.WorkerProcess._cleanup
+
+    def recorded_begin(self):
+        begin(self)
+        seen.append(("begin", held[0]))
+
+    def recorded_cleanup(self):
+        seen.append(("end", held[0]))
+        cleanup(self)
+
+    monkeypatch.setattr(sandbox, "_UNTRUSTED_RUN", Recorded())
+    monkeypatch.setattr(sandbox.WorkerProcess, "begin", recorded_begin)
+    monkeypatch.setattr(sandbox.WorkerProcess, "_cleanup", recorded_cleanup)
+    grader = Grader(answer_key=wrong_edition / "hwtools" / "grade" / "answer_key.json", isolation="none")
+    entry = grader.grade(wrong_edition, todos=["1.3.2"])["todos"][0]
+    assert entry["status"] == "graded", entry
+    assert seen.count(("begin", True)) >= 2, seen  # the run and a server of the student's own kit
+    assert all(during for _, during in seen), seen
+    assert not held[0]
 
 
 def test_a_check_cell_names_the_todo_at_fault(wrong_edition):

@@ -29,7 +29,7 @@ from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging, kits
 from hwtools.grade.checks import p1_cartpole, p2_logreg
 from hwtools.grade.checks.verdicts import show, tell_apart
 from hwtools.grade.episodes import Environments, Records
-from hwtools.grade.class_feedback import todo_markdown
+from hwtools.grade.instructor.class_feedback import todo_markdown
 from hwtools.check_cell import check_lines
 from hwtools.grade.feedback import failure_words, render
 import editions

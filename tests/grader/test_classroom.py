@@ -27,9 +27,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks, classroom, kits, submissions
+from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks, kits, submissions
+from hwtools.grade.instructor import classroom
 from hwtools.grade.checks.verdicts import show
-from hwtools.grade.gradebook import gradebook_header
+from hwtools.grade.instructor.gradebook import gradebook_header
 from hwtools.grade.grader import read_answer_key
 import editions
 import test_grading as proof  # the grader's proof builds the wrong solutions and cheats
@@ -332,7 +333,7 @@ def test_the_saved_results_are_stale_once_any_module_of_the_grader_changes(monke
                            sandbox=SimpleNamespace(python="python", isolated=True, how="", time_limit=1.0, memory_limit=1))
     before = classroom.grading_fingerprint(fake)
     read_bytes = Path.read_bytes
-    grade = Path(classroom.__file__).resolve().parent
+    grade = Path(classroom.__file__).resolve().parents[1]
     for changed in (grade / "checks" / "p1_cartpole.py", grade / "in_sandbox" / "probes.py", grade / "judging.py",
                     grade.parent / "todos.py"):
         monkeypatch.setattr(Path, "read_bytes", lambda path, changed=changed: read_bytes(path) + b"#" * (path == changed))
@@ -667,7 +668,7 @@ def test_a_class_of_big_answers_keeps_the_grader_under_600_mib(layout, tmp_path,
     for number in range(4):  # each with code of its own: no run is reused
         own = dict(cheat, bodies={todo: f"{body}\n# big{number}" for todo, body in cheat["bodies"].items()})
         proof.build_cheat(layout, own, folder / f"big{number}", answer_key)
-    code = ("import json, sys; from hwtools.grade import Grader, classroom; "
+    code = ("import json, sys; from hwtools.grade import Grader; from hwtools.grade.instructor import classroom; "
             f"grader = Grader({str(KIT)!r}, time_limit={TIME_LIMIT}, jobs=1); "
             f"report = classroom.grade_class({str(folder)!r}, {str(tmp_path / 'g.csv')!r}, {str(tmp_path / 'fb')!r}, "
             "grader=grader, jobs=2); "

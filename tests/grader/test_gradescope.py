@@ -30,7 +30,7 @@ import pytest
 
 from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, blocks, kits
 from hwtools.grade.grader import read_answer_key
-from hwtools.grade.gradescope_autograder import BUNDLE_MARKER
+from hwtools.grade.instructor.gradescope_autograder import BUNDLE_MARKER
 
 import containers
 import editions
@@ -204,7 +204,7 @@ def test_the_bundle_holds_what_gradescope_runs_and_nothing_a_grader_does_not_nee
         setup = archive.read("setup.sh").decode()
     names = set(infos)
     assert {"setup.sh", "run_autograder", "requirements.txt", BUNDLE_MARKER, "instructor/hidden_checks/__init__.py",
-            "hwlib/finite_diff.py", "hwtools/grade/gradescope_autograder.py"} <= names
+            "hwlib/finite_diff.py", "hwtools/grade/instructor/gradescope_autograder.py"} <= names
     for name in ("setup.sh", "run_autograder"):
         assert (infos[name].external_attr >> 16) & 0o111, f"{name} is not executable"
     assert not [name for name in names if name.startswith(("notebooks/", "tests/", "benchmarks/", "data/"))
@@ -349,7 +349,7 @@ def test_where_no_sandbox_works_no_student_code_runs_and_results_json_says_the_a
     assert "The autograder is misconfigured" in data["output"] and "not your fault" in data["output"]
     assert data["extra_data"]["status"].startswith("not graded: the autograder is misconfigured")
     fix = data["extra_data"]["misconfigured"]
-    assert "bubblewrap" in fix and "python -m hwtools.grade.user_sandbox create" in fix
+    assert "bubblewrap" in fix and "python -m hwtools.grade.instructor.user_sandbox create" in fix
     assert "setup.sh" in stdout and "Grading your submission" not in stdout
 
 
@@ -406,7 +406,7 @@ def test_an_unreadable_submission_gets_zero_and_the_reason_at_once(bundle, tmp_p
 
 
 def test_students_read_their_status_without_the_sandbox_s_state():
-    from hwtools.grade.gradescope_autograder import results_json
+    from hwtools.grade.instructor.gradescope_autograder import results_json
 
     result = {"notes": [], "total": {"auto_earned": 0.0}, "isolated": False, "isolation": "bwrap is missing",
               "todos": []}

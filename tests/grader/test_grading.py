@@ -194,7 +194,7 @@ def test_a_mistake_keeps_the_points_of_what_is_right_and_costs_nothing_elsewhere
 def test_the_class_sees_its_mistakes_beside_the_gradebook(grader, layout, tmp_path):
     """A class of three: one right, two with a forward difference in 1.2.1. Beside the gradebook:
     each check's pass rate and each named mistake's count, as a table and a bar chart."""
-    from hwtools.grade import classroom
+    from hwtools.grade.instructor import classroom
 
     forward = mistakes.read_wrong_solution(WRONG / "forward_difference.txt")
     for student, bodies in (("ada", {}), ("bob", {"1.2.1": list(forward.bodies)}), ("cy", {"1.2.1": list(forward.bodies)})):

@@ -13,9 +13,9 @@ import pytest
 
 from hwtools.check_cell import check_lines
 from hwtools.grade import broker, checks, judging
-from hwtools.grade.class_feedback import todo_markdown
+from hwtools.grade.instructor.class_feedback import todo_markdown
 from hwtools.grade.checks.verdicts import show
-from hwtools.grade.gradescope_autograder import _tests
+from hwtools.grade.instructor.gradescope_autograder import _tests
 
 pytestmark = pytest.mark.timeout(120)
 

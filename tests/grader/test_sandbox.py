@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import broker, cgroups, kits, sandbox, user_sandbox
+from hwtools.grade import broker, kits, sandbox
+from hwtools.grade.instructor import cgroups, user_sandbox
 from hwtools.grade.in_sandbox import channel
 from hwtools.grade.sandbox import Sandbox
 import containers
@@ -545,7 +546,8 @@ def test_with_a_reference_and_no_sandbox_no_student_code_runs(monkeypatch, tmp_p
     """Fail closed: where neither bubblewrap nor the user fallback works, a grader with a reference
     (points decided) refuses to run a submission, with the fix; only an explicit isolation="none"
     runs it (and says NOT ISOLATED), and the instructor's own kit still grades itself."""
-    from hwtools.grade import Grader, GradingError, blocks, classroom
+    from hwtools.grade import Grader, GradingError, blocks
+    from hwtools.grade.instructor import classroom
 
     marker = tmp_path / "ran"
     layout = blocks.load_layout(KIT)

@@ -1,14 +1,12 @@
 """The student edition as a student opens it on day one, for the tests that look at it.
 
-``day_one_edition(out[, tmp_path_factory])`` builds the student edition (``instructor.release``) and makes sure every
-untouched TODO raises ``TodoNotDone`` when it runs. The release tool is to write such stubs
-itself (``raise TodoNotDone("1.2.1")``, ``hwlib/machinery/todos.py``); where it still writes ``pass`` or a
-bare ``raise NotImplementedError()``, this module writes those stubs in the built copy, and a
-stand-in ``hwlib/machinery/todos.py`` if the kit has none. Once the release tool does it, nothing is
-rewritten here: the tests then look at the real stubs.
+``day_one_edition(out[, tmp_path_factory])`` builds the untouched student edition (``instructor.release``),
+whose every stub raises ``TodoNotDone`` when it runs, a notebook cell's too: the tests look at the stubs
+the release writes.
 
 ``student_python(folder)`` makes a Python like a student's, which has the kit's packages but not the
-instructor's tools.
+instructor's tools; ``student_python(folder, foreign=True)`` one whose kit code runs as on Windows
+(``foreign_os.py``), to be run with ``kit_env(kit, python)``.
 
 ``step_through(path)`` runs every code cell of a notebook in one kernel, on past errors, as a
 student pressing Shift-Enter through it does, and gives each cell's outputs.
@@ -19,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -26,70 +25,10 @@ from pathlib import Path
 
 KIT = Path(__file__).resolve().parents[2]
 
-STAND_IN_TODO = '''"""TodoNotDone: what an untouched TODO's stub raises (a stand-in written by tests/instructor/day_one.py)."""
-
-import sys
-
-
-class TodoNotDone(NotImplementedError):
-    """Raised by the stub of TODO ``todo``; IPython shows two lines instead of a traceback."""
-
-    def __init__(self, todo):
-        self.todo = todo
-        code = sys._getframe(1).f_code
-        if "/hwlib/" in code.co_filename:
-            self.where = f"{getattr(code, 'co_qualname', code.co_name)} in hwlib/{code.co_filename.rsplit('/hwlib/', 1)[-1]}"
-        else:
-            self.where = "your code goes in this cell"
-        super().__init__(f"TODO {todo} is not done yet: {self.where}")
-
-    def _render_traceback_(self):
-        return [f"TODO {self.todo} is not done yet: {self.where}",
-                "Write it between its ### BEGIN TODO and ### END TODO lines, save the file, then "
-                "Kernel > Restart Kernel and Run All Cells."]
-'''
-_PASS_STUB = re.compile(r"(?m)^(?P<indent>[ \t]+)(?P<hint># TODO (?P<todo>[\d.]+): .*)\n(?P=indent)pass$")
-_LEARNING_RATE_NOT_SET = re.compile(r'raise ValueError\(f"\{name\} is not set: .*?\)\n', re.S)
-
-
-def raising_stubs(kit):
-    """Rewrite the stubs of the student edition at ``kit`` that do not raise TodoNotDone yet;
-    returns the files changed (none once the release tool writes such stubs)."""
-    kit = Path(kit)
-    changed = []
-    todo_module = kit / "hwlib" / "machinery" / "todos.py"
-    for path in sorted((kit / "hwlib").rglob("*.py")):
-        text = path.read_text(encoding="utf-8")
-        new = _PASS_STUB.sub(lambda m: f'{m["indent"]}{m["hint"]}\n{m["indent"]}from hwlib.machinery.todos import TodoNotDone\n'
-                                       f'{m["indent"]}raise TodoNotDone("{m["todo"]}")', text)
-        if path.name == "policy_search.py":  # reading LEARNING_RATE while it is None is TODO 1.3.3 not done
-            new = _LEARNING_RATE_NOT_SET.sub('from hwlib.machinery.todos import TodoNotDone\n        raise TodoNotDone("1.3.3")\n', new)
-        if new != text:
-            path.write_text(new, encoding="utf-8")
-            changed.append(path.relative_to(kit).as_posix())
-    for path in sorted((kit / "notebooks").glob("*.ipynb")):
-        notebook = json.loads(path.read_text(encoding="utf-8"))
-        touched = False
-        for cell in notebook["cells"]:
-            source = "".join(cell["source"])
-            found = re.search(r"### BEGIN TODO ([\d.]+)", source)
-            if cell["cell_type"] == "code" and found and "raise NotImplementedError()" in source:
-                source = source.replace("raise NotImplementedError()",
-                                        f'from hwlib.machinery.todos import TodoNotDone\nraise TodoNotDone("{found[1]}")')
-                cell["source"] = source.splitlines(keepends=True)
-                touched = True
-        if touched:
-            path.write_text(json.dumps(notebook, indent=1, sort_keys=True, ensure_ascii=False) + "\n", encoding="utf-8")
-            changed.append(path.relative_to(kit).as_posix())
-    if changed and not todo_module.exists():
-        todo_module.write_text(STAND_IN_TODO, encoding="utf-8")
-        changed.append("hwlib/machinery/todos.py")
-    return changed
-
 
 def day_one_edition(out, tmp_path_factory=None, **options):
-    """The untouched student edition in ``out`` (built, then ``raising_stubs``): in a test run with the run's
-    one answer key (``editions.build``), else (``benchmarks/bench_dayone.py``) as the release builds it."""
+    """The untouched student edition in ``out``: in a test run with the run's one answer key
+    (``editions.build``), else (``benchmarks/bench_dayone.py``) as the release builds it."""
     if tmp_path_factory is None:
         from instructor.release import build_student_edition  # noqa: PLC0415 - the instructor's tool
 
@@ -98,26 +37,40 @@ def day_one_edition(out, tmp_path_factory=None, **options):
         from editions import build  # noqa: PLC0415
 
         build(out, tmp_path_factory, **options)
-    raising_stubs(out)
     return Path(out)
 
 
-def kit_env(kit):
-    """The environment in which the kit at ``kit`` (not this one) is what Python imports."""
-    return {**os.environ, "PYTHONPATH": str(kit), "MPLBACKEND": "Agg"}
+def kit_env(kit, python=None):
+    """The environment in which the kit at ``kit`` (not this one) is what Python imports; with the
+    ``python`` of ``student_python(..., foreign=True)``, its ``PATH`` has no bubblewrap, ``prlimit``
+    or Chromium."""
+    env = {**os.environ, "PYTHONPATH": str(kit), "MPLBACKEND": "Agg"}
+    if python is not None and (Path(python).parent.parent / FOREIGN_PROGRAMS).is_dir():
+        env["PATH"] = os.pathsep.join((str(Path(python).parent), str(Path(python).parent.parent / FOREIGN_PROGRAMS)))
+    return env
 
 
-def student_python(folder):
+FOREIGN_PROGRAMS = "foreign-programs"  # beside a foreign student Python's bin/: the programs its PATH holds
+
+
+def student_python(folder, foreign=False):
     """A Python like a student's, in the new folder ``folder``: a virtual environment with this
     environment's packages (those of requirements.txt) but not this kit's own (its editable install
-    is not read), so ``instructor`` cannot be imported. Run it with ``kit_env(edition)``: the edition
-    is then on its path, as the edition's own ``pip install -e .`` puts it."""
+    is not read), so ``instructor`` cannot be imported. Run it with ``kit_env(edition, python)``: the
+    edition is then on its path, as the edition's own ``pip install -e .`` puts it. ``foreign``: every
+    process of it takes Windows's gaps away from the kit's code (``foreign_os.py``)."""
     subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(folder)], check=True, timeout=300)
     python = Path(folder) / "bin" / "python"
     purelib = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
                              capture_output=True, text=True, check=True).stdout.strip()
     Path(purelib, "kit-packages.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
     (Path(folder) / "share").symlink_to(Path(sys.prefix) / "share")  # Jupyter's data files (nbconvert's templates)
+    if foreign:
+        import foreign_os  # noqa: PLC0415 - not installed by importing it
+
+        shutil.copyfile(foreign_os.__file__, Path(purelib, "foreign_os.py"))
+        Path(purelib, "foreign-os.pth").write_text("import foreign_os; foreign_os.install()\n")
+        foreign_os.stripped_path(Path(folder) / FOREIGN_PROGRAMS)
     return python
 
 

@@ -17,7 +17,8 @@ import zlib
 
 import numpy as np
 
-from hwtools.grade import class_feedback, gradebook, gradescope_autograder, kits
+from hwtools.grade import kits
+from hwtools.grade.instructor import class_feedback, gradebook, gradescope_autograder
 from hwtools.grade.feedback import render
 
 

@@ -1,7 +1,7 @@
 """Gradescope's autograder: grade the submission in ``/autograder/submission`` and write
 ``/autograder/results/results.json``. The bundle's ``run_autograder`` runs
 
-    python -m hwtools.grade.gradescope_autograder [--root /autograder]
+    python -m hwtools.grade.instructor.gradescope_autograder [--root /autograder]
 
 (built by ``python -m instructor.release gradescope OUT.zip``). The root comes from ``--root``, else
 the environment variable ``AUTOGRADER_ROOT``, else ``/autograder``; under it ``source/`` is the
@@ -55,9 +55,9 @@ import time
 from pathlib import Path
 
 from hwtools.grade import kits
-from hwtools.grade.class_feedback import UNGRADED_HELP, md_escape, todo_markdown
+from hwtools.grade.instructor.class_feedback import UNGRADED_HELP, md_escape, todo_markdown
 from hwtools.grade.judging import visible_view
-from hwtools.grade.gradebook import GRADED, NOT_ISOLATED, status_of
+from hwtools.grade.instructor.gradebook import GRADED, NOT_ISOLATED, status_of
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.grade.feedback import render
 from hwtools.grade.grader import Grader, GradingError
@@ -203,7 +203,7 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
     kit_names = kit_file_names(grader.layout)
     scrubbed = _scrub(paths["source"])
     out.write(f"sandbox: {box.kind}: {box.how if box.isolated else 'NOT ISOLATED: ' + box.how}\n"
-              f"grader: {Path(__file__).resolve().parent}; reference: {paths['source']} (hwlib and hidden checks "
+              f"grader: {Path(__file__).resolve().parents[1]}; reference: {paths['source']} (hwlib and hidden checks "
               f"{'deleted from disk once loaded' if scrubbed else 'left on disk'})\n")
     refused = grader.refusal()
     if refused:  # fail closed: no sandbox, no student code
@@ -227,7 +227,7 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
         result, status, notes, fault = None, f"not graded: the autograder failed ({type(error).__name__})", [], FAILED
         out.write(f"error: the grader failed: {type(error).__name__}: {error}\n")
     if box.kind == "user":
-        from hwtools.grade.user_sandbox import kill_all_users  # noqa: PLC0415
+        from hwtools.grade.instructor.user_sandbox import kill_all_users  # noqa: PLC0415
 
         if not kill_all_users():
             raise GradingError("a process of the sandbox's users could not be killed: no results written")
@@ -242,7 +242,7 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.gradescope_autograder",
+    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.instructor.gradescope_autograder",
                                      description="Gradescope's run_autograder: grade ROOT/submission, write "
                                                  "ROOT/results/results.json.")
     parser.add_argument("--root", help="the autograder folder (default: $AUTOGRADER_ROOT, else /autograder)")

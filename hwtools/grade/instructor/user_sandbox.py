@@ -2,9 +2,9 @@
 them, as on Gradescope): each run as an unprivileged user of its own, without network sockets, on a
 kit folder only that run can read.
 
-    python -m hwtools.grade.user_sandbox create [--count 8]    # once, as root (setup.sh does it)
-    python -m hwtools.grade.user_sandbox python FOLDER          # a Python those users can run (rm -r it after)
-    python -m hwtools.grade.user_sandbox close-shared           # as root: no world-writable folder but SHARED_PLACES
+    python -m hwtools.grade.instructor.user_sandbox create [--count 8]    # once, as root (setup.sh does it)
+    python -m hwtools.grade.instructor.user_sandbox python FOLDER          # a Python those users can run (rm -r it after)
+    python -m hwtools.grade.instructor.user_sandbox close-shared           # as root: no world-writable folder but SHARED_PLACES
 
 What a run gets (the grader must run as root to start it):
 
@@ -60,7 +60,7 @@ import threading
 import time
 from pathlib import Path
 
-from hwtools.grade.cgroups import MAX_PROCESSES  # processes (threads included) of one run (its user's limit too)
+from hwtools.grade.instructor.cgroups import MAX_PROCESSES  # processes (threads included) of one run (its user's limit too)
 
 CONFINE = Path(__file__).resolve().with_name("confine.py")
 SYSTEM_PYTHON = "/usr/bin/python3"  # the system's Python, which has Debian's python3-seccomp
@@ -132,7 +132,7 @@ class _Slot:
     def __init__(self, wait=600.0, user=None):
         pool = [user] if user is not None else users()
         if not pool:
-            raise RuntimeError("no sandbox users: create them as root with python -m hwtools.grade.user_sandbox create")
+            raise RuntimeError("no sandbox users: create them as root with python -m hwtools.grade.instructor.user_sandbox create")
         give_up = time.monotonic() + wait
         while True:
             for entry in pool:
@@ -408,7 +408,7 @@ def probe(python):
         return False, "the grader is not root, so it cannot run code as another user"
     pool = users()
     if not pool:
-        return False, "no sandbox users (as root: python -m hwtools.grade.user_sandbox create; setup.sh does it)"
+        return False, "no sandbox users (as root: python -m hwtools.grade.instructor.user_sandbox create; setup.sh does it)"
     if not shutil.which("setpriv"):
         return False, "setpriv (util-linux) is missing"
     try:
@@ -509,7 +509,7 @@ def runnable_python(folder, python=sys.executable, packages=GRADED_PACKAGES):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.user_sandbox", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m hwtools.grade.instructor.user_sandbox", description=__doc__.split("\n")[0])
     commands = parser.add_subparsers(dest="command", required=True)
     create = commands.add_parser("create", help="create the pool's users (as root)")
     create.add_argument("--count", type=int, default=DEFAULT_USERS)

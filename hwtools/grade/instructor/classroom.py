@@ -49,11 +49,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hwtools import markers
-from hwtools.grade import class_summary, kits
-from hwtools.grade.class_feedback import feedback_markdown
+from hwtools.grade import kits
+from hwtools.grade.instructor import class_summary
+from hwtools.grade.instructor.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
-from hwtools.grade.gradebook import StudentResult, canvas_text, gradebook_text, status_of
-from hwtools.grade.class_progress import Progress
+from hwtools.grade.instructor.gradebook import StudentResult, canvas_text, gradebook_text, status_of
+from hwtools.grade.instructor.class_progress import Progress
 from hwtools.grade.submissions import Unusable, file_name, kit_file_names, open_submission
 
 STATE_VERSION = 1
@@ -95,7 +96,7 @@ def grading_fingerprint(grader):
     digest.update(kits.files_digest(grader.layout.files).encode())
     hidden = Path(grader.reference) / HIDDEN_CHECKS
     digest.update(hidden.read_bytes() if hidden.is_file() else b"no hidden checks")
-    grade = Path(__file__).resolve().parent  # every module of the grader, in its folders too (checks/, in_sandbox/)
+    grade = Path(__file__).resolve().parents[1]  # every module of the grader, in its folders too (checks/, in_sandbox/)
     for path in sorted(grade.rglob("*.py")) + [grade.parent / "todos.py"]:
         digest.update(path.relative_to(grade.parent).as_posix().encode() + b"\0" + path.read_bytes())
     box = grader.sandbox

@@ -13,14 +13,18 @@ from __future__ import annotations
 import functools
 import json
 import os
+import select
 import shutil
+import signal
 import subprocess
 import tempfile
+import time
 from pathlib import Path
+
+from hwtools.grade.kits import WORKER, worker_env
 
 TMPFS_BYTES = 64 * 1024**2  # the run's /tmp
 SHM_BYTES = 16 * 1024**2  # the run's /dev/shm (the rest of its /dev is read-only)
-WORKER = Path(__file__).resolve().parent / "in_sandbox" / "worker.py"  # the entry point of every sandboxed process
 
 
 @functools.lru_cache(maxsize=None)
@@ -120,8 +124,39 @@ def probe_isolation(python):
     return True, how
 
 
-def worker_env(home):
-    """The only environment a worker gets, with its home folder ``home``."""
-    return {"PATH": "/usr/bin:/bin", "HOME": home, "TMPDIR": "/tmp" if home.startswith("/tmp/") else home,
-            "LANG": "C.UTF-8", "MPLBACKEND": "Agg", "PYTHONHASHSEED": "0", "PYTHONDONTWRITEBYTECODE": "1",
-            "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+def sandbox_init(info_fd, bwrap_pid, wait=60.0):
+    """A pidfd of the bubblewrap sandbox's process-namespace init, read from ``bwrap --info-fd``
+    (None if bubblewrap ended before making it): when it has exited, every process of the sandbox
+    has (the kernel kills and reaps a namespace's processes before its init exits)."""
+    data, give_up = b"", time.monotonic() + wait
+    while time.monotonic() < give_up:
+        if not select.select([info_fd], [], [], give_up - time.monotonic())[0]:
+            continue
+        chunk = os.read(info_fd, 4096)
+        if not chunk:
+            break
+        data += chunk
+    try:
+        child = int(json.loads(data.decode())["child-pid"])
+        pidfd = os.pidfd_open(child)
+    except (ValueError, KeyError, TypeError, OSError):
+        return None
+    try:  # the pid is bubblewrap's child (not a process that reused a freed pid)
+        with open(f"/proc/{child}/stat", encoding="ascii", errors="replace") as stat:
+            parent = int(stat.read().rsplit(")", 1)[1].split()[1])
+    except (OSError, ValueError, IndexError):
+        parent = None
+    if parent != bwrap_pid:
+        os.close(pidfd)
+        return None
+    return pidfd
+
+
+def wait_gone(pidfd, gone_seconds):
+    """Kill the sandbox's init (and so every process of its namespace) and wait until it is gone;
+    False if it is still there after gone_seconds."""
+    try:
+        signal.pidfd_send_signal(pidfd, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    return bool(select.select([pidfd], [], [], gone_seconds)[0])

@@ -9,7 +9,7 @@ import threading
 import time
 
 from hwtools.grade.feedback import points
-from hwtools.grade.gradebook import GRADED, NOT_ISOLATED
+from hwtools.grade.instructor.gradebook import GRADED, NOT_ISOLATED
 from hwtools.grade.safe_text import printable
 from hwtools.todos import AUTO_POINTS
 

@@ -1,0 +1,102 @@
+"""The Windows-like Python of ``foreign_os.py`` (issue 32.7): in a ``student_python(..., foreign=True)``,
+a probe in a ``hwtools/`` package, run as the grader runs its worker (``python -B -s``), is refused every
+facility it tries, and the same probe outside the kit has them all, called from the kit too (a
+library the kit calls has its own branches for Windows); ``PATH`` holds no bubblewrap, ``prlimit`` or
+Chromium.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pytest
+
+from day_one import kit_env, student_python
+from foreign_os import UNIX_MODULES, UNIX_NAMES
+
+PROBE = r'''
+import json, os, pathlib, select, shutil, signal, socket, sys
+
+def attempt(action):
+    try:
+        return repr(action())
+    except Exception as error:
+        return f"{type(error).__name__}: {error}"
+
+def facilities():
+    tried = {f"import {name}": attempt(lambda: exec(f"import {name}", dict(globals()))) for name in UNIX_MODULES}
+    tried["importlib.import_module('fcntl')"] = attempt(lambda: __import__("importlib").import_module("fcntl").__name__)
+    for module, names in UNIX_NAMES.items():
+        tried.update({f"{module}.{name}": attempt(lambda: hasattr(sys.modules[module], name)) for name in names})
+    tried.update(asked())
+    pair = socket.socketpair()
+    tried["select a socket"] = attempt(lambda: select.select([pair[0]], [pair[1]], [], 0)[1] == [pair[1]])
+    return tried
+
+def asked():
+    read, write = os.pipe()
+    return {"select a pipe": attempt(lambda: select.select([read], [write], [], 0)),
+            "select nothing": attempt(lambda: select.select([], [], [], 0)),
+            "os.listdir /proc": attempt(lambda: len(os.listdir("/proc")) > 0),
+            "os.scandir /proc/self": attempt(lambda: len(list(os.scandir("/proc/self"))) > 0),
+            "os.stat /proc/self": attempt(lambda: os.stat("/proc/self").st_mode > 0),
+            "os.path.exists /proc": attempt(lambda: os.path.exists("/proc")),
+            "os.path.isdir /proc/1": attempt(lambda: os.path.isdir("/proc/1")),
+            "open /proc/self/status": attempt(lambda: len(open("/proc/self/status").read()) > 0),
+            "pathlib /proc/self/status": attempt(lambda: len(pathlib.Path("/proc/self/status").read_text()) > 0),
+            "pathlib /proc iterdir": attempt(lambda: len(list(pathlib.Path("/proc").iterdir())) > 0)}
+
+if __name__ == "__main__":
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    import elsewhere
+    json.dump({"here": facilities(), "elsewhere, called from here": elsewhere.asked(),
+               "programs": [name for name in ("bwrap", "prlimit", "chromium", "python", "sh") if shutil.which(name)]},
+              sys.stdout)
+'''
+REFUSED_SELECT = "OSError: [Errno 88] [WinError 10038] An operation was attempted on something that is not a socket"
+ASKED = {"select a pipe": REFUSED_SELECT, "select nothing": "OSError: [Errno 22] [WinError 10022] An invalid argument was supplied",
+         "os.listdir /proc": "FileNotFoundError: [Errno 2] No such file or directory: '/proc'",
+         "os.scandir /proc/self": "FileNotFoundError: [Errno 2] No such file or directory: '/proc/self'",
+         "os.stat /proc/self": "FileNotFoundError: [Errno 2] No such file or directory: '/proc/self'",
+         "os.path.exists /proc": "False", "os.path.isdir /proc/1": "False",
+         "open /proc/self/status": "FileNotFoundError: [Errno 2] No such file or directory: '/proc/self/status'",
+         "pathlib /proc/self/status": "FileNotFoundError: [Errno 2] No such file or directory: '/proc/self/status'",
+         "pathlib /proc iterdir": "FileNotFoundError: [Errno 2] No such file or directory: '/proc'"}
+
+
+@pytest.fixture(scope="module")
+def probes(tmp_path_factory):
+    """(the foreign Python, the probe in the kit, the same probe outside it)."""
+    root = tmp_path_factory.mktemp("foreign-os")
+    python = student_python(root / "venv", foreign=True)
+    code = root / "code"
+    (code / "hwtools").mkdir(parents=True)
+    text = f"UNIX_MODULES = {sorted(UNIX_MODULES)!r}\nUNIX_NAMES = {{{', '.join(f'{m.__name__!r}: {sorted(n)!r}' for m, n in UNIX_NAMES.items())}}}\n{PROBE}"
+    for path in (code / "hwtools" / "probe.py", code / "elsewhere.py"):
+        path.write_text(text)
+    return python, code / "hwtools" / "probe.py", code / "elsewhere.py"
+
+
+def probe(python, script):
+    done = subprocess.run([str(python), "-B", "-s", str(script)], capture_output=True, text=True, timeout=120,
+                          cwd=script.parent, env=kit_env(script.parent, python))
+    assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout)
+
+
+def test_the_kit_is_refused_every_unix_only_facility_and_other_code_is_not(probes):
+    python, in_kit, outside = probes
+    kit = probe(python, in_kit)
+    assert kit["here"] == {**{f"import {name}": f"ModuleNotFoundError: No module named {name!r}" for name in UNIX_MODULES},
+                           "importlib.import_module('fcntl')": "ModuleNotFoundError: No module named 'fcntl'",
+                           **{f"{module.__name__}.{name}": "False" for module, names in UNIX_NAMES.items() for name in names},
+                           **ASKED, "select a socket": "True"}
+    other = kit["elsewhere, called from here"]
+    assert not any("Error" in result for result in other.values()) and other["os.path.exists /proc"] == "True", other
+    assert kit["programs"] == ["python", "sh"]
+    other = probe(python, outside)["here"]
+    refused = {facility: result for facility, result in other.items() if "Error" in result}
+    assert not refused, refused
+    assert other["os.path.exists /proc"] == other["select a socket"] == "True"
+    assert other["os.killpg"] == other["signal.SIGKILL"] == other["select.poll"] == "True"
