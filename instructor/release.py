@@ -18,8 +18,8 @@ edition
 * a fenced block in library code becomes the student's starting point between kept markers
   ``### BEGIN TODO 1.2.1`` / ``### END TODO 1.2.1``: the hint as a ``# TODO`` comment, the STUB
   lines and ``raise TodoNotDone("1.2.1")``, so the skeleton around it (signature, givens, return)
-  reads as the student's start; a module-level block becomes ``NAME = None  # TODO 1.3.3: <hint>``
-  (``instructor/stubs.py``);
+  reads as the student's start; a module-level block becomes the hint comment and ``NAME = None``
+  (``instructor/stubs.py``), its hint comment wrapped (``HINT_WIDTH``);
 * a fenced block in a notebook code cell becomes ``# TODO <id>: <hint>`` and its STUB lines, or
   ``raise TodoNotDone("<id>")`` (imported from ``hwlib``), between the same kept markers; in a
   Markdown cell it becomes ``YOUR ANSWER HERE``; every notebook's outputs, execution counts,

@@ -8,8 +8,12 @@ markers (the grader reads the student's code from between them):
   says which TODO it is where it is called instead of returning zeros. ``TodoNotDone`` is the
   kit's "not done yet" exception (``hwlib/machinery/todos.py``); a module with such a block imports it. In a
   kit without that module the stub is the STUB lines or ``pass``, as before;
-* at module level (``settings.LEARNING_RATE``): ``NAME = None  # TODO x.y.z: <hint>`` for every
+* at module level (``settings.LEARNING_RATE``): the hint comment, then ``NAME = None`` for every
   name the block assigns, so the module still imports.
+
+The hint comment of a module-level or notebook stub is wrapped at ``HINT_WIDTH`` columns, so its
+lines do not run off an editor's view; a function stub's stays one line, since the notebooks link to
+the lines of the library TODOs below it (``#line=``).
 
 In a notebook code cell a block becomes the hint, then its STUB lines (the starting values a cell
 runs with) or, in a kit with ``TodoNotDone``, ``from hwlib import TodoNotDone`` and ``raise
@@ -20,12 +24,14 @@ it, ``# YOUR CODE HERE`` and ``raise NotImplementedError()``). In a Markdown cel
 from __future__ import annotations
 
 import ast
+import textwrap
 
 from hwtools import markers
 from instructor.kit import ReleaseError, find_blocks
 
 NOT_DONE = "TodoNotDone"  # the exception an untouched function stub raises
 NOT_DONE_MODULE = "hwlib/machinery/todos.py"  # where the kit defines it; with this file, every function stub raises it
+HINT_WIDTH = 100  # columns of a module-level or notebook stub's "# TODO x.y.z: <hint>" comment, then more lines
 
 # One-line hints per TODO, used where a block has no "### HINT:" line of its own.
 HINTS = {
@@ -84,12 +90,11 @@ def python_stub(block, lines, path, not_done=False):
     markers: the hint as a comment, then the block's STUB lines and (``not_done``: the module has
     ``TodoNotDone``) ``raise TodoNotDone("x.y.z")``, or ``pass``. The skeleton around the block is
     the same in both editions."""
-    hint = _hint(block, HINTS, path)
     if block.indent:
         stub = [f"{block.indent}{line}" if line else "" for line in block.stub]
         if not_done and not any(line.lstrip().startswith("raise") for line in block.stub):
             stub.append(f'{block.indent}raise {NOT_DONE}("{block.todo}")')
-        return todo_markers(block, [f"{block.indent}# TODO {block.todo}: {hint}", *(stub or [f"{block.indent}pass"])])
+        return todo_markers(block, [*_hint_comment(block, HINTS, path, width=None), *(stub or [f"{block.indent}pass"])])
     # Module level: a raise would stop the import, so every assigned name becomes None.
     try:
         tree = ast.parse("\n".join(block.code))
@@ -105,7 +110,7 @@ def python_stub(block, lines, path, not_done=False):
         names.extend(target.id for target in targets)
     if not names:
         raise ReleaseError(f"{path}:{block.begin + 1}: module-level solution block {block.todo} assigns nothing")
-    return todo_markers(block, [f"{name} = None  # TODO {block.todo}: {hint}" for name in names])
+    return todo_markers(block, [*_hint_comment(block, HINTS, path), *(f"{name} = None" for name in names)])
 
 
 def _binds_not_done(text, path):
@@ -131,10 +136,10 @@ def _binds_not_done(text, path):
 def notebook_code_stub(block, path, not_done=False):
     """The student's start for a notebook block: its STUB lines, else (``not_done``: the kit has
     ``TodoNotDone``, which ``hwlib`` exports) ``raise TodoNotDone("x.y.z")``, else a bare raise."""
-    hint = _hint(block, NOTEBOOK_HINTS, path)
+    hint = _hint_comment(block, NOTEBOOK_HINTS, path)
     body = block.stub or ([f"from hwlib import {NOT_DONE}", f'raise {NOT_DONE}("{block.todo}")'] if not_done
                           else ["# YOUR CODE HERE", "raise NotImplementedError()"])
-    return todo_markers(block, [f"{block.indent}# TODO {block.todo}: {hint}", *(f"{block.indent}{line}" for line in body)])
+    return todo_markers(block, [*hint, *(f"{block.indent}{line}" for line in body)])
 
 
 def markdown_stub(block, path):
@@ -182,12 +187,17 @@ def as_list(codes):
     return [codes] if isinstance(codes, str) else list(codes)
 
 
-def _hint(block, table, path):
+def _hint_comment(block, table, path, width=HINT_WIDTH):
+    """The lines of the block's ``# TODO x.y.z: <hint>`` comment, at its indent, wrapped at ``width``
+    (None: one line)."""
     hint = block.hint or table.get(block.todo) or HINTS.get(block.todo)
     if not hint:
         raise ReleaseError(f"{path}:{block.begin + 1}: no hint for TODO {block.todo}: add a '### HINT: ...' line "
                            "after the BEGIN line or an entry in instructor/stubs.py's hint tables")
-    return hint
+    if width is None:
+        return [f"{block.indent}# TODO {block.todo}: {hint}"]
+    return textwrap.wrap(f"TODO {block.todo}: {hint}", width, initial_indent=f"{block.indent}# ",
+                         subsequent_indent=f"{block.indent}# ", break_long_words=False, break_on_hyphens=False)
 
 
 def _indent(code, indent):

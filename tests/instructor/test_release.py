@@ -31,6 +31,7 @@ from instructor.release import (
     transform_notebook,
     transform_python,
 )
+from instructor.stubs import HINT_WIDTH
 
 pytestmark = pytest.mark.quick  # the quick tier (pyproject.toml)
 
@@ -128,7 +129,7 @@ def test_library_blocks_become_todo_stubs(edition):
         student = (edition / name).read_text(encoding="utf-8")
         for todo, body, _ in _source_blocks(path):
             seen.add(todo)
-            stub = re.compile(rf"^([ \t]*)### BEGIN TODO {re.escape(todo)}\n\1(# TODO {re.escape(todo)}: .+|\w+ = None  # TODO {re.escape(todo)}: .+)\n"
+            stub = re.compile(rf"^([ \t]*)### BEGIN TODO {re.escape(todo)}\n\1# TODO {re.escape(todo)}: .+\n"
                               rf"(\1.*\n)*?\1### END TODO {re.escape(todo)}$", re.M)
             assert stub.search(student), f"{name}: no stub for TODO {todo}"
         outside = [line for line in path.read_text().split("\n") if line not in {l for _, b, _ in _source_blocks(path) for l in b}
@@ -155,7 +156,20 @@ def test_no_answer_reaches_the_students_another_way(edition):
 
 def test_module_level_block_becomes_none_and_the_module_still_imports(edition):
     text = (edition / "hwlib" / "settings.py").read_text()
-    assert re.search(r"^LEARNING_RATE = None  # TODO 1\.3\.3: ", text, re.M)
+    assert re.search(r"^### BEGIN TODO 1\.3\.3\n(# .+\n)+LEARNING_RATE = None\n### END TODO 1\.3\.3$", text, re.M)
+
+
+def test_every_line_of_a_module_level_or_notebook_stub_fits_an_editors_view(edition):
+    """Their hint comments are wrapped (issue 32.5: ``LEARNING_RATE = None  # TODO ...`` was 160
+    characters); a function stub's hint stays one line, the notebooks' links count the lines below it."""
+    texts = [(edition / name).read_text(encoding="utf-8") for name in _tree(edition) if name.startswith("hwlib/")
+             and name.endswith(".py")]
+    texts += ["".join(cell["source"]) for path in (edition / "notebooks").glob("*.ipynb")
+              for cell in json.loads(path.read_text(encoding="utf-8"))["cells"] if cell["cell_type"] == "code"]
+    stubs = [stub for text in texts for stub in re.findall(r"^### BEGIN TODO .*?### END TODO", text, re.M | re.S)]
+    assert sorted(re.match(r"### BEGIN TODO (\S+)", stub)[1] for stub in stubs) == ["1.1.2", "1.3.3", "2.3.2"]
+    long = [line for stub in stubs for line in stub.split("\n") if len(line) > HINT_WIDTH]
+    assert not long, long
 
 
 def test_every_module_of_the_student_edition_imports(edition):
@@ -386,7 +400,7 @@ def test_made_up_kit_student_edition(tmp_path):
     assert names == ["README.md", "data/README.md", "hwlib/__init__.py", "hwlib/mod.py", "notebooks/nb.ipynb", "pyproject.toml",
                      "tests/conftest.py", "tests/unit/test_mod.py"]  # of tests/, the student's folder only
     module = (tmp_path / "out" / "hwlib" / "mod.py").read_text()
-    assert 'RATE = None  # TODO 1.3.3: ' in module
+    assert re.search(r"^# TODO 1\.3\.3: .+\nRATE = None$", module, re.M)
     assert ("    x = np.asarray(x)\n    ### BEGIN TODO 1.1.1\n    # TODO 1.1.1: multiply by two\n    pass\n"
             "    ### END TODO 1.1.1\n\n") in module
     assert "        if True:\n            ### BEGIN TODO 1.2.1\n            # TODO 1.2.1: " in module
@@ -527,7 +541,7 @@ def test_function_stubs_raise_todo_not_done_where_the_kit_defines_it(tmp_path):
             '    raise TodoNotDone("1.1.1")\n    ### END TODO 1.1.1\n') in module
     assert re.search(r'^            # TODO 1\.2\.1: .+\n            raise TodoNotDone\("1\.2\.1"\)\n            ### END TODO 1\.2\.1$',
                      module, re.M)
-    assert "RATE = None  # TODO 1.3.3: " in module and "pass" not in module  # module level: still None
+    assert re.search(r"^RATE = None$", module, re.M) and "pass" not in module  # module level: still None
     code = ("import hwlib.mod as m\nfrom hwlib.machinery.todos import TodoNotDone\nfor call in (lambda: m.double(1), lambda: m.Thing().value()):\n"
             "    try:\n        call()\n    except TodoNotDone as error:\n        print(error.todo)\nprint(m.RATE)")
     result = subprocess.run([sys.executable, "-c", code], cwd=tmp_path / "out", capture_output=True, text=True,
@@ -580,7 +594,7 @@ def test_every_function_stub_of_this_kit_raises_todo_not_done(tmp_path):
         student = (out / path.relative_to(source)).read_text()
         assert re.search(rf'^([ \t]+)### BEGIN TODO {re.escape(todo)}\n\1# TODO {re.escape(todo)}: .+\n'
                          rf'\1raise TodoNotDone\("{re.escape(todo)}"\)\n\1### END TODO {re.escape(todo)}$', student, re.M), todo
-    assert re.search(r"^LEARNING_RATE = None  # TODO 1\.3\.3: ", (out / "hwlib" / "settings.py").read_text(), re.M)
+    assert re.search(r"^LEARNING_RATE = None$", (out / "hwlib" / "settings.py").read_text(), re.M)
     code = ("import hwlib\nfrom hwlib.machinery.todos import TodoNotDone\nfrom hwlib.finite_diff import scalar_finite_diff\n"
             "try:\n    scalar_finite_diff(lambda x: float(x.sum()), [1.0, 2.0], 0.1)\nexcept TodoNotDone as error:\n"
             "    print('raised', *error.args)")

@@ -385,7 +385,7 @@ class TestTheStudentEditionsStubs:
             text = path.read_text(encoding="utf-8")
             for todo in TODO_BLOCK.findall(text):
                 if path.name == "settings.py":
-                    assert re.search(rf"^LEARNING_RATE = None  # TODO {todo}", text, re.M)
+                    assert re.search(rf"^# TODO {todo}: .+\n(# .+\n)*LEARNING_RATE = None$", text, re.M)
                 else:
                     assert f'raise TodoNotDone("{todo}")' in text, (path.name, todo)
             ast.parse(text)

@@ -2,7 +2,15 @@
 command, filled with the reference solutions, and left with what editing leaves behind (JupyterLab's
 checkpoints of a library file and of a notebook, holding the stubs as first saved; an editor's backup
 ``logreg.py~``; vim's swap file ``.finite_diff.py.swp``). Then, with a Python that has the kit's
-packages but not the instructor's (``instructor`` cannot be imported):
+packages but not the instructor's (``instructor`` cannot be imported), and that takes from the kit's
+own code, in every process (the kernel, the grader, its workers), what Windows lacks (issue 32.7,
+``foreign_os.py``: the Unix-only modules and names, ``select()`` of a pipe, ``/proc``; no bubblewrap,
+``prlimit`` or Chromium on ``PATH``; made to fail once against the kit of 2780067: the edition's
+pytest had 12 notebook cells fail, each notebook's first cell at ``import fcntl``,
+``hwtools/grade/sandbox.py:63``, through ``hwtools.check_cell``, then ``check`` a NameError in every
+check cell; hand-in stopped at the same import; with that import made optional, ``limit_own_memory``
+stopped at ``resource``; and in today's edition, ``_kill_strays`` without its ``/proc`` check gives
+"the grader failed on this TODO's code (FileNotFoundError: ... '/proc')"):
 
 * the edition's own test command, ``python -m pytest`` (its unit tests and its notebooks), passes
   within its time limits;
@@ -68,7 +76,7 @@ def fill(kit):
 
 
 def run(python, kit, *args, timeout):
-    env = {key: value for key, value in kit_env(kit).items() if key != "PYTEST_ADDOPTS"}
+    env = {key: value for key, value in kit_env(kit, python).items() if key != "PYTEST_ADDOPTS"}
     return subprocess.run([str(python), *args], cwd=kit, env=env, capture_output=True, text=True, timeout=timeout)
 
 
@@ -86,7 +94,7 @@ def path(tmp_path_factory):
     for name in ("data.npz", "audio"):  # the course's data, where this kit has it, put where the student puts it
         if (KIT / "data" / name).exists():
             (kit / "data" / name).symlink_to((KIT / "data" / name).resolve())
-    python = student_python(root / "venv")
+    python = student_python(root / "venv", foreign=True)
     assert run(python, kit, "-c", "import instructor", timeout=120).returncode == 1
     return kit, python
 
@@ -277,3 +285,28 @@ def test_a_report_replaces_the_previous_one_only_once_complete(tmp_path, monkeyp
         handin.write_report(tmp_path, out_dir, "alovelac", "Ada", said.append)
     assert sorted(path.name for path in out_dir.iterdir()) == ["alovelac.pdf", "report"]
     assert (out_dir / "report" / "answers.pdf").read_bytes() == b"%PDF Ada L. / alovelac"
+
+
+def test_a_report_without_a_pdf_is_kept_and_says_how_to_make_one(tmp_path, monkeypatch):
+    """Where no browser prints answers.pdf (the report says how to make it and writes the rest), hand-in puts
+    that report in place, removes the PDF of an earlier one and says the same; the zip is written first."""
+    said = []
+    out_dir = tmp_path / "handin"
+    out_dir.mkdir()
+    (out_dir / "alovelac.pdf").write_bytes(b"%PDF an earlier report")
+
+    def report(kit, folder, name):
+        folder.mkdir(parents=True)
+        (folder / "answers.tex").write_text(name)
+        return None
+
+    monkeypatch.setattr(handin, "build_report", report)
+    monkeypatch.setattr(handin, "checked_zip", lambda kit, andrew_id: (b"zip", ["hwlib/cartpole.py"]))
+    monkeypatch.setattr(handin, "visible_checks", lambda kit, say: [])
+    result = handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=said.append)
+    assert result == {"zip": out_dir / "alovelac.zip", "pdf": None, "failing": []}
+    assert sorted(path.name for path in out_dir.iterdir()) == ["alovelac.zip", "report"]
+    assert (out_dir / "report" / "answers.tex").read_text() == "alovelac"
+    words = "\n".join(said)
+    assert f"{out_dir / 'report'}: the report without its PDF" in words and "set HWLIB_CHROMIUM" in words, words
+    assert "Hand in alovelac.zip on Canvas and the report's PDF on Gradescope." in words
