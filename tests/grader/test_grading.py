@@ -33,6 +33,7 @@ KIT = Path(__file__).resolve().parents[2]
 CHEATS = Path(__file__).resolve().parent / "cheats"
 NATURAL = Path(__file__).resolve().parent / "natural_solutions"
 WRONG = KIT / "instructor" / "wrong_solutions"
+UNSEEN = Path(__file__).resolve().parent / "unseen_mistakes"
 TIME_LIMIT = 20.0  # per TODO's run: room for every natural solution however slowly written
 # A cheat whose own TODO's run lasts until its limit: graded with a short one (the limit is what stops
 # it, whatever its size), so that it costs seconds, not TIME_LIMIT.
@@ -154,6 +155,20 @@ def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, 
     if todo != "1.3.3":  # and the one line of Python that rebuilds the visible input (1.3.3's is a setting)
         assert named["reproduce"].startswith("from hwtools.cases import visible_case; ") and "\n" not in named["reproduce"]
     assert all(other.get("mistake") is None for other in result["todos"] if other["id"] != todo)
+
+
+# A known mistake written with another constant than its wrong solution's (issue 32.5: 5 rollouts
+# instead of 1, a step of 1e-3 instead of 0.5, the last episode instead of the first) is named as
+# that mistake, by the rule its judge sees in the grader's records, and keeps at most 30% of its TODO.
+@pytest.mark.parametrize("path", sorted(UNSEEN.glob("*.txt")), ids=lambda path: path.stem)
+def test_a_known_mistake_with_another_constant_is_named_as_that_mistake(grader, layout, tmp_path, path):
+    todo, mistake, bodies = parse_wrong_solution(path)
+    expected = mistakes.read_wrong_solution(WRONG / (re.search(r"^# expect:\s*(\S+)", path.read_text(encoding="utf-8"), re.M)[1] + ".txt"))
+    kits.write_submission(layout, tmp_path, {todo: bodies}, others="reference")
+    result = grader.grade(tmp_path)
+    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
+    assert (entry.get("mistake") or {}).get("diagnosis") == expected.diagnosis, (path.name, mistake, entry.get("mistake"))
+    assert points(result)[todo] <= 0.3 * TODO_BY_ID[todo].auto, (path.name, points(result)[todo])
 
 
 # Mistakes the issue names, with the points they keep: the credit follows what is right.

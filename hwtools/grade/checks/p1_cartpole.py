@@ -208,8 +208,10 @@ def _first_call(args, result, want):
     if result["status"] != "ok":
         return None, Verdict(False, want, result["error"])
     episodes, problem = _eval_episodes(args, result)
-    if problem:
-        return None, Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}")
+    if problem:  # the known mistake "one_episode": one episode per call where num_rollouts asks for more
+        one = args["num_rollouts"] > 1 and int(np.sum(result["records"]["episode_direct"])) == 2
+        return None, Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}",
+                             rule="one_episode" if one else "")
     return {name: part[:args["num_rollouts"]] for name, part in episodes.items()}, None
 
 
@@ -343,16 +345,32 @@ def _training_run(args, result, want, shape_want=None):
     return result["values"], None
 
 
-def _rollouts_used(args, result):
-    """None if every recorded evaluation asked for num_rollouts_per_eval episodes, else the Verdict's actual."""
+def _rollouts_used(args, result, want):
+    """None if every recorded evaluation asked for num_rollouts_per_eval episodes, else the Verdict
+    that fails the run (the known mistake "other_rollouts" where one asked for another number)."""
     rollouts = result["records"]["evaluation_rollouts"]
     wrong = np.flatnonzero(rollouts != args["rollouts"])
     if len(rollouts) == 0:
-        return "eval_params was never called"
+        return Verdict(False, want, "eval_params was never called")
     if wrong.size:
-        return (f"evaluation {int(wrong[0]) + 1} of {len(rollouts)} asked eval_params for {int(rollouts[wrong[0]])} "
-                f"rollout(s); num_rollouts_per_eval is {args['rollouts']}")
+        return Verdict(False, want, f"evaluation {int(wrong[0]) + 1} of {len(rollouts)} asked eval_params for "
+                                    f"{int(rollouts[wrong[0]])} rollout(s); num_rollouts_per_eval is {args['rollouts']}",
+                       rule="other_rollouts")
     return None
+
+
+def _other_step(points, theta, step):
+    """"other_step" (a known mistake) if the evaluations ``points`` around ``theta`` hold a central
+    difference of another step than ``step`` (theta +- s e_i, s != step) and none of ``step``, else ""."""
+    offsets = np.asarray(points, dtype=np.float64) - np.asarray(theta, dtype=np.float64)
+    moved = ~np.isclose(offsets, 0.0, rtol=0.0, atol=1e-12)
+    rows = np.flatnonzero(moved.sum(axis=1) == 1)  # evaluations that move one coordinate of theta
+    axes = moved[rows].argmax(axis=1)
+    sizes = offsets[rows, axes]
+    steps = [size for axis, size in zip(axes, sizes)
+             if size > 0 and np.any((axes == axis) & np.isclose(sizes, -size, rtol=1e-9, atol=0.0))]
+    found = bool(steps) and not np.any(np.isclose(steps, step, rtol=1e-9, atol=0.0))
+    return "other_step" if found else ""
 
 
 def judge_known_steps(args, result, expected, services):
@@ -366,14 +384,15 @@ def judge_known_steps(args, result, expected, services):
     history, rewards = values["params_history"], values["rewards"]
     if not _close(history[0], args["initial_params"], 0, 0):
         return Verdict(False, f"theta[0] = initial_params = {show(args['initial_params'])}", show(history[0]))
-    wrong_rollouts = _rollouts_used(args, result)
+    wrong_rollouts = _rollouts_used(args, result, want)
     if wrong_rollouts:
-        return Verdict(False, want, wrong_rollouts)
+        return wrong_rollouts
     for t in range(args["iterations"]):
         step = history[t] + args["learning_rate"] * central_difference(g, history[t], args["fd_step"])
         if not _close(history[t + 1], step, 1e-9, 1e-9):
             return Verdict(False, f"theta[{t + 1}] = {show(step)} (step fd_step = {show(args['fd_step'])})",
-                           f"theta[{t + 1}] = {show(history[t + 1])}")
+                           f"theta[{t + 1}] = {show(history[t + 1])}",
+                           rule=_other_step(result["records"]["evaluation_params"], history[t], args["fd_step"]))
         if not _close(rewards[t + 1], g(history[t + 1]), 1e-9, 1e-9):
             return Verdict(False, f"rewards[{t + 1}] = g(theta[{t + 1}]) = {show(g(history[t + 1]))}, the reward "
                                   "after the update", f"rewards[{t + 1}] = {show(rewards[t + 1])}")
@@ -428,9 +447,9 @@ def judge_real_rewards(args, result, expected, services):
     history, rewards, records = values["params_history"], values["rewards"], result["records"]
     if not _close(values["final_params"], history[-1], 0, 0):
         return Verdict(False, "the returned policy has the last parameters", show(values["final_params"]))
-    wrong_rollouts = _rollouts_used(args, result)
+    wrong_rollouts = _rollouts_used(args, result, want)
     if wrong_rollouts:
-        return Verdict(False, want, wrong_rollouts)
+        return wrong_rollouts
     points, seeds, scores = records["evaluation_params"], records["evaluation_seeds"], records["evaluation_values"]
     if len(points) > MAX_JUDGED_EVALUATIONS:
         return Verdict(False, want, f"{len(points)} evaluations of eval_params in {len(rewards) - 1} iteration(s), more "
@@ -463,7 +482,8 @@ def judge_real_rewards(args, result, expected, services):
             if best is None:
                 found = "no evaluations at theta[t-1] +- h e_i" if first_pair is None else \
                     f"evaluations there give theta[{t}][{i}] = {show(history[t - 1][i] + rate * (first_pair[2] - first_pair[3]) / (2.0 * h))}"
-                return Verdict(False, want, f"theta[{t}][{i}] = {show(history[t][i])}: {found}")
+                return Verdict(False, want, f"theta[{t}][{i}] = {show(history[t][i])}: {found}",
+                               rule=_other_step(points, history[t - 1], h))
             latest = max(latest, best)
         after = [index for index in _at(points, history[t]).tolist() if index > latest and scores[index] == rewards[t]]
         if not after:
