@@ -21,6 +21,8 @@ Then it writes into ``handin/`` (next to the kit's ``hwlib/`` unless ``--out`` s
   kernel), for Gradescope; the whole report, its figures and the LaTeX source ``answers.tex`` where
   the report writes it, are in ``handin/report/``. It is built beside the previous report, which it
   replaces only once complete (and says so); a report that fails leaves the previous one as it was.
+  Without a Chrome, Edge or Chromium there is no PDF: the rest of the report is put in place all the
+  same, and it says how to make the PDF.
 
 Each step says how long it took; at the end, the whole hand-in's time.
 """
@@ -157,7 +159,8 @@ def visible_checks(kit, say=print):
 
 
 def build_report(kit, out_dir, name):
-    """Run the report (a subprocess, as a student would) into ``out_dir``; its PDF, or HandinError."""
+    """Run the report (a subprocess, as a student would) into ``out_dir``; its PDF (None where no browser printed
+    it: the rest of the report is written), or HandinError."""
     command = [sys.executable, "-m", "hwtools.report", str(out_dir), "--name", name]
     done = subprocess.run(command, cwd=kit, capture_output=True, text=True)
     if done.returncode != 0:
@@ -165,9 +168,13 @@ def build_report(kit, out_dir, name):
         why = next((line for line in lines if "not done yet" in line), None) or "\n".join(lines[-12:])
         raise HandinError(f"the report could not be built (python -m hwtools.report):\n{why}")
     pdf = Path(out_dir) / "answers.pdf"
-    if not pdf.is_file():
-        raise HandinError(f"the report wrote no {pdf}")
-    return pdf
+    return pdf if pdf.is_file() else None
+
+
+def _no_browser():
+    from hwtools.report.chromium import NO_BROWSER  # imported only here: hwtools.report loads matplotlib (1.5 s)
+
+    return NO_BROWSER
 
 
 def minutes(seconds):
@@ -180,7 +187,8 @@ def _written(path):
 
 
 def write_report(kit, out_dir, andrew_id, name, say=print):
-    """Build the report beside ``out_dir/report`` and put it in place once complete; the PDF's path."""
+    """Build the report beside ``out_dir/report`` and put it in place once complete; the PDF's path (None, and a
+    previous PDF removed, where the report has none)."""
     report_dir, target = out_dir / "report", out_dir / f"{andrew_id}.pdf"
     building = out_dir / f".report-building-{os.getpid()}"
     shutil.rmtree(building, ignore_errors=True)
@@ -196,6 +204,9 @@ def write_report(kit, out_dir, andrew_id, name, say=print):
         say(f"  it replaces the previous report in {report_dir} (written {_written(report_dir)})")
         shutil.rmtree(report_dir)
     building.rename(report_dir)
+    if pdf is None:
+        target.unlink(missing_ok=True)
+        return None
     shutil.copyfile(report_dir / pdf.name, target)
     return target
 
@@ -228,9 +239,11 @@ def handin(andrew_id, kit=KIT_ROOT, out_dir=None, name=None, report=True, say=pr
         say(f"building the report: both notebooks run from a fresh kernel, then the PDF is printed ({REPORT_TIME}) ...")
         result["pdf"] = write_report(kit, out_dir, andrew_id, name, say)
         say(f"{result['pdf']}: the report ({minutes(time.monotonic() - step)}; all its files, the LaTeX source "
-            f"included where written, are in {out_dir / 'report'})")
+            f"included where written, are in {out_dir / 'report'})" if result["pdf"] else
+            f"{out_dir / 'report'}: the report without its PDF ({minutes(time.monotonic() - step)}): {_no_browser()}")
     say("")
-    say(f"Hand in {zip_path.name} on Canvas" + (f" and {andrew_id}.pdf on Gradescope." if report else ".")
+    say(f"Hand in {zip_path.name} on Canvas" + (f" and {andrew_id}.pdf on Gradescope." if result["pdf"] else
+                                                 " and the report's PDF on Gradescope." if report else ".")
         + f" (hand-in took {minutes(time.monotonic() - started)})")
     return result
 

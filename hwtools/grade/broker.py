@@ -81,7 +81,8 @@ def _stop(ending):
 @dataclass
 class Outcome:
     """How a run ended: ``status`` ok or a key of STOPS, ``detail`` in the grader's words, ``phase``
-    where it stopped (setup, visible, hidden, done), ``notes`` (fixed phrases)."""
+    where it stopped (setup, visible, hidden, done), ``notes`` (fixed phrases), ``visible_notes``
+    those of them given before any hidden input was sent (what a student may see)."""
 
     status: str = "ok"
     detail: str = ""
@@ -89,6 +90,7 @@ class Outcome:
     seconds: float = 0.0
     exit_code: int | None = None
     notes: list = field(default_factory=list)
+    visible_notes: list = field(default_factory=list)
     stderr_tail: str = ""  # the worker's error stream (its prints): for the instructor's debugging, never shown
     budget: bool = False  # stopped by the submission's time budget (not by this code's own limits)
 
@@ -397,14 +399,17 @@ def run_cases(process, todo, visible, hidden, pool):
     ``process`` for TODO ``todo``; (Outcome, {case id: result}). ``pool``: the ReferencePool that
     answers served calls (None: none are answered)."""
     conversation, outcome, results, timeout = Conversation(process, todo, pool), Outcome(), {}, ""
+    shown = None  # how many of the conversation's notes came before its first hidden input (None: all)
     if hidden and not visible:  # a run of hidden cases alone: from its setup on, nothing of it is shown
-        outcome.phase = "hidden"
+        outcome.phase, shown = "hidden", 0
     try:
         conversation.ask({"op": "setup", "mode": "worker", "todo": todo}, "ready")
         for phase, cases in (("visible", visible), ("hidden", hidden)):
             if not cases and phase == "visible" and hidden:
                 continue
             outcome.phase = phase
+            if phase == "hidden" and cases and shown is None:
+                shown = len(conversation.notes)
             for case_id, probe, args in cases:
                 conversation.case_probe, conversation.case_args, conversation.records = probe, args, Records()
                 conversation.limit = call_limit(args)
@@ -425,6 +430,7 @@ def run_cases(process, todo, visible, hidden, pool):
         # of this one is gone, and an interpreter's own exit takes longer than a kill
         outcome.exit_code, outcome.stderr_tail, outcome.seconds = process.finish(graceful=False)
         outcome.notes = list(dict.fromkeys(conversation.notes))
+        outcome.visible_notes = list(dict.fromkeys(conversation.notes[:shown]))
     if outcome.status == "ended":
         outcome.detail = _ended(outcome.exit_code, outcome.phase)
     elif outcome.status == "timeout" and timeout and outcome.phase != "hidden":  # which limit, in fixed words

@@ -407,6 +407,7 @@ class Grader:
             if outcome.status == "ok" and any(result.get("status") == "ok" for result in results.values()):
                 hidden_outcome, hidden_results = self._run_now(todo, files, [], _phase(cases.hidden), pool, budget)
                 hidden_outcome.notes = list(dict.fromkeys(outcome.notes + hidden_outcome.notes))
+                hidden_outcome.visible_notes = outcome.visible_notes  # the hidden run's own: none
                 hidden_outcome.seconds += outcome.seconds
                 student = (hidden_outcome, {**results, **hidden_results})
         run = {"student": student, "reference": self._reference_of(todo, cases)}

@@ -79,8 +79,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
                 entry["visible_status"] = entry["status"]
                 visible_notes.append(entry["notes"][-1])
         entry["notes"].extend(outcome.notes)
-        if not (cases and cases.hidden):  # a run's own notes may come from its hidden phase
-            visible_notes.extend(outcome.notes)
+        visible_notes.extend(outcome.visible_notes)  # those given before any hidden input was sent
     reference = run["reference"] or {}
     earned, warnings, passed_by_key = 0.0, [], {}
     for behaviour in checks.BEHAVIOURS_BY_TODO[todo]:

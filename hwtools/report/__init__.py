@@ -15,7 +15,7 @@ Writes into OUT_DIR (created if needed):
 | ``answers.md``                               | every answer the handout asks to report, the 2.1.1 derivation and the figures |
 | ``answers.tex``                              | the same as a LaTeX homework, a section per handout item, with places for your words |
 | ``answers.html``                             | the same as answers.md, as one self-contained page           |
-| ``answers.pdf``                              | answers.html printed by nbconvert's webpdf exporter in Debian's Chromium, with page numbers and the name line |
+| ``answers.pdf``                              | answers.html printed by nbconvert's webpdf exporter in Chrome, Edge or Chromium, with page numbers and the name line |
 
 Every result is computed once, by the notebooks: the report reads them from the notebooks' kernels and
 never trains, sweeps or samples again. Where to look:
@@ -28,7 +28,7 @@ never trains, sweeps or samples again. Where to look:
 | ``figures``   | the five figures, drawn by ``hwlib.plots`` and saved as PNG, PDF and SVG             |
 | ``latex``     | answers.tex, from ``templates/answers.tex.j2`` (derivation converted by pandoc)      |
 | ``pages``     | the HTML pages, by nbconvert's HTMLExporter with ``templates/kit_*``, and MathJax    |
-| ``chromium``  | Debian's Chromium: typesetting the pages static, printing answers.pdf (webpdf)       |
+| ``chromium``  | the machine's Chrome, Edge or Chromium: typesetting the pages static, printing answers.pdf |
 | ``command``   | ``build_report`` and ``main``, the command itself                                    |
 
 This package's names below are the ones the tests and the rest of the kit use.

@@ -1,10 +1,11 @@
-"""Debian's Chromium, driven by Playwright (which never downloads a browser here): ``typeset_pages`` typesets the
+"""The Chrome, Edge or Chromium this machine has (``chromium_path``), driven by Playwright (which never downloads a
+browser here): ``typeset_pages`` typesets the
 report's HTML pages once and saves them static (formulas as HTML, MathJax's fonts embedded, no script), and
 ``print_pdf`` prints answers.pdf from the saved page with nbconvert's ``webpdf`` exporter.
 
 nbconvert's exporter has no setting for the browser it starts nor for the paper: it calls Playwright's
 ``launch`` without a path, and its ``pdf`` with Playwright's default paper (US Letter). ``print_pdf`` runs it
-with those two defaults changed, and nothing else: the browser is Debian's (``chromium_path``), and the paper
+with those two defaults changed, and nothing else: the browser is the machine's (``chromium_path``), and the paper
 is the page's own CSS size (A4, in templates/kit_answers/static/answers.css).
 """
 
@@ -14,13 +15,14 @@ import base64
 import os
 import re
 import shutil
+import sys
 import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import unquote, urlparse
 
-# Debian's Chromium, started the way this machine's closed network needs (no background traffic).
+# The browser, started the way a closed network needs (no background traffic).
 CHROMIUM_ARGS = [
     "--headless",
     "--no-sandbox",
@@ -49,13 +51,38 @@ LOCAL_FONT_URL = re.compile(r"""url\(\s*(['"]?)(file://[^'")]+?\.(?:woff2?|otf|t
 FONT_TYPES = {"woff": "font/woff", "woff2": "font/woff2", "otf": "font/otf", "ttf": "font/ttf"}
 
 
+# The browsers that print the PDF, where each system installs them, tried in the order of browser_candidates():
+# macOS's apps below /Applications and ~/Applications, Windows's programs below the folders these variables name,
+# Linux's names on PATH, then in /usr/bin.
+MAC_APPS = ("Google Chrome.app/Contents/MacOS/Google Chrome", "Chromium.app/Contents/MacOS/Chromium",
+            "Microsoft Edge.app/Contents/MacOS/Microsoft Edge")
+WINDOWS_FOLDERS = ("PROGRAMFILES", "PROGRAMFILES(X86)", "LOCALAPPDATA")
+WINDOWS_PROGRAMS = ("Google/Chrome/Application/chrome.exe", "Microsoft/Edge/Application/msedge.exe",
+                    "Chromium/Application/chrome.exe")
+LINUX_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "microsoft-edge")
+NO_BROWSER = ("no Chrome, Edge or Chromium found: install one (or set HWLIB_CHROMIUM to its program) and run this "
+              "again, or compile answers.tex (pdflatex answers.tex)")
+
+
+def browser_candidates():
+    """The programs ``chromium_path`` tries, in order, on this system (``sys.platform``)."""
+    if sys.platform == "darwin":
+        return [Path(folder, app) for folder in ("/Applications", Path.home() / "Applications") for app in MAC_APPS]
+    if sys.platform == "win32":
+        return [Path(os.environ[folder], *program.split("/")) for folder in WINDOWS_FOLDERS if os.environ.get(folder)
+                for program in WINDOWS_PROGRAMS]
+    return [Path(found) for found in map(shutil.which, LINUX_NAMES) if found] + [
+        Path("/usr/bin", name) for name in LINUX_NAMES]
+
+
 def chromium_path():
-    """Debian's Chromium (or ``$HWLIB_CHROMIUM``) if it is there, else None."""
-    candidate = Path(os.environ.get("HWLIB_CHROMIUM", "/usr/bin/chromium"))
-    if candidate.is_file() and os.access(candidate, os.X_OK):
-        return candidate
-    found = shutil.which("chromium")
-    return Path(found) if found else None
+    """The Chrome, Edge or Chromium that prints the PDF, or None: ``$HWLIB_CHROMIUM`` if set (and then only it),
+    else the first of ``browser_candidates()`` there is."""
+    chosen = os.environ.get("HWLIB_CHROMIUM")
+    for candidate in [Path(chosen)] if chosen else browser_candidates():
+        if candidate.is_file() and os.access(candidate, os.X_OK):
+            return candidate
+    return None
 
 
 def embed_local_fonts(page_html):
@@ -118,7 +145,7 @@ def typeset_pages(pages, chromium, math=True):
 def _playwright_defaults(chromium):
     """While nbconvert's webpdf exporter runs: Playwright's ``launch`` starts ``chromium`` and its ``pdf`` takes the
     page's CSS paper size, where nbconvert passes neither. Meanwhile PLAYWRIGHT_BROWSERS_PATH names an empty
-    folder, so that a browser Playwright downloaded can never stand in for Debian's."""
+    folder, so that a browser Playwright downloaded can never stand in for the machine's."""
     from playwright.async_api import BrowserType, Page as PlaywrightPage
 
     launch, pdf = BrowserType.launch, PlaywrightPage.pdf

@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from hwtools.report.answers import NAME_LABEL, answers_markdown, compute_answers
-from hwtools.report.chromium import Page, chromium_path, print_pdf, typeset_pages
+from hwtools.report.chromium import NO_BROWSER, Page, chromium_path, print_pdf, typeset_pages
 from hwtools.report.figures import FIGURES, figure_svg, make_figures, save_figure
 from hwtools.report.latex import ANSWERS_TEX, answers_latex, write_answers_tex
 from hwtools.report.notebooks import (
@@ -151,10 +151,12 @@ def build_report(out_dir, progress=print, pdf=True, name=None):
         source.write_text(answers_html(markdown_text, svgs, mathjax_url, name), encoding="utf-8")
         pages.append(Page(source, out_dir / ANSWERS_HTML))
         written.update({page.target.name: page.target for page in pages})
+        page_names = ", ".join(page.target.name for page in pages)
 
         if chromium is None:
-            step("PDF: SKIPPED - Chromium not found (install Debian's chromium, or set HWLIB_CHROMIUM to its path); "
-                 "the HTML pages typeset their formulas when opened, from the mathjax/ folder beside them")
+            step(f"PDF: SKIPPED - {NO_BROWSER}")
+            step(f"pages: written {page_names}" + (
+                f" (they typeset their formulas when opened, from the {MATHJAX_COPY}/ folder beside them)" if mathjax else ""))
         else:
             step(f"pages: typesetting the formulas with {chromium} ...")
             untypeset = typeset_pages(pages, chromium, math=mathjax is not None)
@@ -164,7 +166,7 @@ def build_report(out_dir, progress=print, pdf=True, name=None):
                 step(f"PDF: printing {ANSWERS_PDF} with nbconvert's webpdf exporter in {chromium} ...")
                 answers_page = (out_dir / ANSWERS_HTML).read_text(encoding="utf-8")
                 written[ANSWERS_PDF] = print_pdf(answers_page, out_dir / ANSWERS_PDF, chromium)
-            step(f"pages: written {', '.join(page.target.name for page in pages)}" + (f" and {ANSWERS_PDF}" if pdf else ""))
+            step(f"pages: written {page_names}" + (f" and {ANSWERS_PDF}" if pdf else ""))
     step(f"report complete: {len(written)} files in {out_dir}")
     return written
 

@@ -174,8 +174,8 @@ def test_every_failure_has_one_wording_in_every_report():
                "actual": "[0.5]", "difference": "first difference at index [0] (z[0] = 1): expected 0.731059, actual 0.5",
                "tolerance": "|actual - expected| <= 1e-12 * |expected| + 1e-15"}
     headline, fields = failure_words(failure)
-    assert [name for name, _ in fields] == ["mistake", "input", "reproduce", "expected", "actual", "difference",
-                                            "tolerance"]
+    assert [name for name, _ in fields] == ["mistake", "expected", "actual", "difference", "tolerance", "input",
+                                            "reproduce"]  # what is wrong first, then the input (issue 32.5)
     entry = {"id": "2.2.1", "title": "sigmoid", "auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0,
              "manual": "", "status": "graded", "notes": [], "first_failure": failure,
              "checks": [{"check": "sigma(z) ...", "points": 2, "passed": False, "failed_on": "visible",

@@ -157,3 +157,29 @@ def test_every_visible_run_of_a_submission_comes_before_any_hidden_run(tmp_path,
     first_hidden = next(number for number, (_, _, hidden) in enumerate(runs) if hidden)
     assert all(hidden for _, _, hidden in runs[first_hidden:]), runs
     assert {todo for todo, visible, _ in runs if visible} == {todo for todo, _, hidden in runs if hidden}, runs
+
+
+def test_a_visible_run_s_notes_reach_the_visible_view_and_a_hidden_run_s_do_not(tmp_path, monkeypatch):
+    """A TODO with hidden cases is run twice (visible, then hidden): the visible-only view shows the
+    notes its visible run produced, and none that only its hidden run produced."""
+    from hwtools.grade import Grader, blocks, kits
+    from hwtools.grade.grader import KIT_ROOT
+
+    real = broker.Conversation.ask
+
+    def ask(self, message, wanted):  # a note per case, as a served call's failure would leave one
+        if message.get("op") == "case":
+            self.notes.append(f"a note of the {'hidden' if '/h' in message['id'] else 'visible'} run")
+        return real(self, message, wanted)
+
+    monkeypatch.setattr(broker.Conversation, "ask", ask)
+    layout = blocks.load_layout(KIT_ROOT)
+    kits.write_submission(layout, tmp_path, {"2.2.1": "values = 0.5 * (1 + np.tanh(z / 2))"}, others="stub")
+    with Grader(KIT_ROOT) as grader:
+        entry, = grader.grade(tmp_path, todos=["2.2.1"])["todos"]
+    assert entry["auto_earned"] == 2 and grader.case_set("2.2.1", [["values = 0.5 * (1 + np.tanh(z / 2))"]]).hidden
+    assert {"a note of the visible run", "a note of the hidden run"} <= set(entry["notes"]), entry["notes"]
+    assert judging.visible_view(entry)["notes"] == ["a note of the visible run"]
+    for name, shown in _views(entry).items():
+        if name != "status":
+            assert "a note of the visible run" in shown and "hidden run" not in shown, (name, shown)

@@ -285,3 +285,28 @@ def test_a_report_replaces_the_previous_one_only_once_complete(tmp_path, monkeyp
         handin.write_report(tmp_path, out_dir, "alovelac", "Ada", said.append)
     assert sorted(path.name for path in out_dir.iterdir()) == ["alovelac.pdf", "report"]
     assert (out_dir / "report" / "answers.pdf").read_bytes() == b"%PDF Ada L. / alovelac"
+
+
+def test_a_report_without_a_pdf_is_kept_and_says_how_to_make_one(tmp_path, monkeypatch):
+    """Where no browser prints answers.pdf (the report says how to make it and writes the rest), hand-in puts
+    that report in place, removes the PDF of an earlier one and says the same; the zip is written first."""
+    said = []
+    out_dir = tmp_path / "handin"
+    out_dir.mkdir()
+    (out_dir / "alovelac.pdf").write_bytes(b"%PDF an earlier report")
+
+    def report(kit, folder, name):
+        folder.mkdir(parents=True)
+        (folder / "answers.tex").write_text(name)
+        return None
+
+    monkeypatch.setattr(handin, "build_report", report)
+    monkeypatch.setattr(handin, "checked_zip", lambda kit, andrew_id: (b"zip", ["hwlib/cartpole.py"]))
+    monkeypatch.setattr(handin, "visible_checks", lambda kit, say: [])
+    result = handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=said.append)
+    assert result == {"zip": out_dir / "alovelac.zip", "pdf": None, "failing": []}
+    assert sorted(path.name for path in out_dir.iterdir()) == ["alovelac.zip", "report"]
+    assert (out_dir / "report" / "answers.tex").read_text() == "alovelac"
+    words = "\n".join(said)
+    assert f"{out_dir / 'report'}: the report without its PDF" in words and "set HWLIB_CHROMIUM" in words, words
+    assert "Hand in alovelac.zip on Canvas and the report's PDF on Gradescope." in words

@@ -26,6 +26,7 @@ from hwlib import settings
 from hwlib.cartpole import CartPoleLinearPolicy, run_policy
 from hwlib.plots.training import PRINT_WIDTH
 from hwtools import report
+from hwtools.report import chromium
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 REPORT_TIMEOUT = 900  # seconds; the run takes about a minute on 2 cores
@@ -178,6 +179,59 @@ def test_local_fonts_are_embedded_and_missing_ones_dropped(tmp_path):
     embedded = report.embed_local_fonts(css)
     assert "url(data:font/woff;base64,d09GRi1ieXRlcw==) format('woff')" in embedded
     assert "url(data:,)" in embedded and "file:" not in embedded
+
+
+def _program(path):
+    """A stand-in browser at ``path``: an executable file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("")
+    path.chmod(0o755)
+    return path
+
+
+def _browsers(monkeypatch, tmp_path, platform):
+    """This process as on ``platform``, with no browser anywhere but what the test puts under ``tmp_path``."""
+    monkeypatch.setattr(sys, "platform", platform)
+    monkeypatch.delenv("HWLIB_CHROMIUM", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("PATH", str(tmp_path / "bin"))
+    for folder in ("PROGRAMFILES", "PROGRAMFILES(X86)", "LOCALAPPDATA"):
+        monkeypatch.setenv(folder, str(tmp_path / folder))
+
+
+def test_the_pdf_browser_is_found_where_macos_installs_it(tmp_path, monkeypatch):
+    _browsers(monkeypatch, tmp_path, "darwin")
+    assert Path("/Applications/Google Chrome.app/Contents/MacOS/Google Chrome") in chromium.browser_candidates()
+    assert report.chromium_path() is None
+    edge = _program(tmp_path / "home/Applications/Microsoft Edge.app/Contents/MacOS/Microsoft Edge")
+    assert report.chromium_path() == edge
+    chrome = _program(tmp_path / "home/Applications/Google Chrome.app/Contents/MacOS/Google Chrome")
+    assert report.chromium_path() == chrome  # Chrome before Edge
+
+
+def test_the_pdf_browser_is_found_where_windows_installs_it(tmp_path, monkeypatch):
+    _browsers(monkeypatch, tmp_path, "win32")
+    _program(tmp_path / "bin/chromium")  # PATH is not looked at on Windows
+    assert report.chromium_path() is None
+    chrome = _program(tmp_path / "LOCALAPPDATA/Google/Chrome/Application/chrome.exe")  # a user's own install
+    assert report.chromium_path() == chrome
+    edge = _program(tmp_path / "PROGRAMFILES(X86)/Microsoft/Edge/Application/msedge.exe")  # every Windows 10/11 has it
+    assert report.chromium_path() == edge
+    monkeypatch.delenv("LOCALAPPDATA")  # a folder variable missing is a folder without browsers
+    monkeypatch.delenv("PROGRAMFILES(X86)")
+    assert report.chromium_path() is None
+
+
+def test_the_pdf_browser_is_found_on_path_on_linux_and_hwlib_chromium_comes_first(tmp_path, monkeypatch):
+    _browsers(monkeypatch, tmp_path, "linux")
+    chrome = _program(tmp_path / "bin/google-chrome-stable")
+    assert report.chromium_path() == chrome  # before the /usr/bin defaults
+    assert Path("/usr/bin/chromium") in chromium.browser_candidates()
+    chosen = _program(tmp_path / "my browser")
+    monkeypatch.setenv("HWLIB_CHROMIUM", str(chosen))
+    assert report.chromium_path() == chosen
+    monkeypatch.setenv("HWLIB_CHROMIUM", str(tmp_path / "not there"))  # then only it: no other browser instead
+    assert report.chromium_path() is None
 
 
 def test_the_report_computes_nothing_the_notebooks_compute():
