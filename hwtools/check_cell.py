@@ -159,13 +159,16 @@ def check_lines(entry):
             f"{passed} of {len(checks)} visible checks pass"
     if entry.get("blame"):  # the TODO at fault first (the preview: hwtools/grade/blame.py)
         summary = f"{entry['blame']}; {summary}"
+    mistake = (entry.get("mistake") or {}).get("diagnosis")
+    if mistake:  # what is wrong, in the first lines (each failing check below says which of its inputs show it)
+        summary = f"{summary}: {mistake}"
     lines = _wrap(f"TODO {todo} ({title}): {summary}", "")
     for check, ok in zip(checks, visible_pass):
         lines += _wrap(f"{'pass' if ok else 'FAIL'}  {check['check']}", "  ", hang=6)
         failure = None if ok else _visible_failure(entry, check)
         if failure:
             for name in FAILURE_FIELDS:  # the words of every report (feedback.failure_words)
-                if failure.get(name):
+                if failure.get(name) and not (name == "mistake" and failure[name] == mistake):
                     lines += field_lines(name, failure[name], "        ", WIDTH)
     for note in entry["notes"]:
         lines += _wrap(f"note: {note}", "  ")

@@ -67,7 +67,8 @@ def render(result, details=True):
     return "\n".join(lines) + "\n"
 
 
-FAILURE_FIELDS = ("mistake", "input", "reproduce", "expected", "actual", "difference", "tolerance")
+# What is wrong first (the known mistake, the values and where they differ), then the input and the line that rebuilds it.
+FAILURE_FIELDS = ("mistake", "expected", "actual", "difference", "tolerance", "input", "reproduce")
 UNWRAPPED = ("reproduce",)  # one line of Python, to copy: never wrapped
 
 
@@ -83,10 +84,11 @@ def field_lines(name, text, indent, width):
 def failure_words(failure):
     """(headline, [(name, text)]): the words of a TODO's first failing check, the same in every
     report (this text report: the student's preview and the instructor's grade; the class's
-    Markdown feedback and Gradescope). A visible input gives the known mistake the answers match
-    (if one does), the input and the line of Python that rebuilds it, the expected and actual
-    value, where they first differ (index, both values with digits enough to tell them apart,
-    the relative difference) and the tolerance; a hidden one only the check's description."""
+    Markdown feedback and Gradescope). A visible input gives, in FAILURE_FIELDS' order, the known
+    mistake the answers match (if one does), the expected and actual value, where they first differ
+    (index, both values with digits enough to tell them apart, the relative difference), the
+    tolerance, then the input and the line of Python that rebuilds it; a hidden one only the
+    check's description."""
     if failure["hidden"]:
         return (f"First failing check: {failure['check']}, on a hidden input (hidden inputs are not shown; the "
                 "visible ones of this check pass)."), []

@@ -75,8 +75,20 @@ def test_one_line_per_check_and_the_failing_inputs():
     assert lines[0] == "TODO 1.2.1 (central finite differences, eq. (3)): 1 of 2 visible checks pass"
     assert lines[1] == "  pass  one step for every coordinate"
     assert lines[2] == "  FAIL  a step per coordinate"
-    assert [line.split()[0] for line in lines[3:]] == ["input:", "expected:", "actual:"]
-    assert lines[3].endswith("x=[1.0, 2.0], h=0.5") and lines[4].endswith("[2.0, 4.0]") and lines[5].endswith("[0.0, 0.0]")
+    assert [line.split()[0] for line in lines[3:]] == ["expected:", "actual:", "input:"]  # what is wrong, then where
+    assert lines[3].endswith("[2.0, 4.0]") and lines[4].endswith("[0.0, 0.0]") and lines[5].endswith("x=[1.0, 2.0], h=0.5")
+
+
+def test_a_known_mistake_is_named_in_the_first_line():
+    """Issue 32.5: the first lines say what is wrong and where; the mistake is not said twice."""
+    check = a_check("a step per coordinate", False, "visible", "[0.0, 0.0]")
+    check["visible_failure"] = {"mistake": "a forward difference, (f(x + h) - f(x)) / h", **check["visible_failure"]}
+    lines = check_lines({**entry([check]), "mistake": {"id": "forward_difference",
+                                                      "diagnosis": "a forward difference, (f(x + h) - f(x)) / h"}})
+    first_two = " ".join(" ".join(lines[:2]).split())  # wrapped at WIDTH
+    assert first_two.endswith("the visible check fails: a forward difference, (f(x + h) - f(x)) / h"), lines
+    failing = next(i for i, line in enumerate(lines) if line.startswith("  FAIL"))
+    assert [line.split()[0] for line in lines[failing + 1:]] == ["expected:", "actual:", "input:"]
 
 
 def test_a_failure_shows_where_it_differs_and_the_tolerance_as_every_report_does():
@@ -84,8 +96,8 @@ def test_a_failure_shows_where_it_differs_and_the_tolerance_as_every_report_does
     check["visible_failure"].update(difference="first difference at index [0]: relative difference 80.5",
                                     tolerance="|actual - expected| <= 1e-12 * |expected| + 1e-15")
     lines = check_lines(entry([check]))
-    assert [line.split()[0] for line in lines[2:]] == ["input:", "expected:", "actual:", "difference:", "tolerance:"]
-    assert lines[5].endswith("relative difference 80.5") and lines[6].endswith("+ 1e-15")
+    assert [line.split()[0] for line in lines[2:]] == ["expected:", "actual:", "difference:", "tolerance:", "input:"]
+    assert lines[4].endswith("relative difference 80.5") and lines[5].endswith("+ 1e-15")
 
 
 def test_a_check_that_fails_only_on_hidden_inputs_passes_on_the_visible_ones():

@@ -116,6 +116,32 @@ def test_the_difference_names_the_entry_and_its_input():
     assert "index [1] (coordinate 1: x[1] = -1, h[1] = 0.2): expected 2, actual 2.5" in verdict.difference
 
 
+def test_a_real_run_update_off_equation_4_says_what_it_gives_and_where_in_numbers():
+    """1.3.2's real run (issue 32.5): expected is equation (4) in the run's own numbers (its evaluations at
+    theta +- h e_i), actual the entry, then where they differ (it said "actual: theta[1][0] = -0.0435898:
+    evaluations there give theta[1][0] = 0.0184102")."""
+    from test_protocol import real_training_records
+
+    args, result = real_training_records(1)  # g+ = 100 + i, g- = 90 at every theta +- h e_i
+    history = result["values"]["params_history"].copy()
+    wanted = history[1][2]
+    history[1][2] = 2 * history[0][2] - wanted  # stepped down the gradient in coordinate 2
+    verdict = p1_cartpole.judge_real_rewards(args, dict(result, values=dict(result["values"], params_history=history)),
+                                             None, [])
+    assert not verdict.passed and verdict.actual == f"theta[1][2] = {show(history[1][2])}"
+    assert verdict.expected == (f"theta[1][2] = theta[0][2] + learning_rate * (g+ - g-) / (2 h) = {show(history[0][2])} + "
+                                f"{show(args['learning_rate'])} * (102 - 90) / 0.7 = {show(wanted)}, with g+ and g- your "
+                                "eval_params at theta[0] + h e_2 and theta[0] - h e_2 (h = fd_step = 0.35)")
+    assert verdict.difference.startswith(f"the value differs (theta[1][2], update 1): expected {show(wanted)}, actual ")
+    assert verdict.tolerance.startswith("|actual - expected| <= 1e-09 * |expected| + 1e-09")
+    records = result["records"]
+    kept = ~np.all(np.isclose(records["evaluation_params"], history[0] - 0.35 * np.eye(4)[1]), axis=1)  # no g- of e_1
+    alone = dict(result, records=dict(records, **{key: records[key][kept] for key in
+                                                  ("evaluation_params", "evaluation_seeds", "evaluation_values")}))
+    verdict = p1_cartpole.judge_real_rewards(args, alone, None, [])
+    assert verdict.actual == f"theta[1][1] = {show(history[1][1])}, and eval_params was not called at both with one seed"
+
+
 def test_nan_and_a_zero_expected_value_are_said_plainly():
     verdict = judged("2.2.1/values", {"z": np.array([800.0, -800.0])}, [np.nan, 0.0], [1.0, 0.0])
     assert "index [0] (z[0] = 800): expected 1, actual nan" in verdict.difference
@@ -148,8 +174,8 @@ def test_every_failure_has_one_wording_in_every_report():
                "actual": "[0.5]", "difference": "first difference at index [0] (z[0] = 1): expected 0.731059, actual 0.5",
                "tolerance": "|actual - expected| <= 1e-12 * |expected| + 1e-15"}
     headline, fields = failure_words(failure)
-    assert [name for name, _ in fields] == ["mistake", "input", "reproduce", "expected", "actual", "difference",
-                                            "tolerance"]
+    assert [name for name, _ in fields] == ["mistake", "expected", "actual", "difference", "tolerance", "input",
+                                            "reproduce"]  # what is wrong first, then the input (issue 32.5)
     entry = {"id": "2.2.1", "title": "sigmoid", "auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0,
              "manual": "", "status": "graded", "notes": [], "first_failure": failure,
              "checks": [{"check": "sigma(z) ...", "points": 2, "passed": False, "failed_on": "visible",

@@ -11,6 +11,7 @@ import re
 import shutil
 import subprocess
 import sys
+import sysconfig
 from pathlib import Path
 
 import nbformat
@@ -233,6 +234,46 @@ def test_the_student_readme_is_one_page_and_names_only_what_the_edition_has(edit
     names = [path.relative_to(edition).as_posix() for path in edition.rglob("*") if path.is_file()]
     lacking = missing(readme.decode("utf-8"), Kit(edition, names), "README.md")
     assert not lacking, f"the student README names what the edition lacks: {lacking}"
+
+
+def _install_variants(readme):
+    """{first word of its bold label: the words of its code block, line by line} of the README's "Install and open"."""
+    section = readme.split("## Install and open", 1)[1].split("\n## ", 1)[0]
+    blocks = re.findall(r"\*\*(\w+)[^*]*\*\*[^\n]*\n\n```\w*\n(.*?)```", section, flags=re.DOTALL)
+    return {label: [line.split() for line in block.splitlines()] for label, block in blocks}
+
+
+def test_the_student_readme_installs_with_the_editions_files_on_macos_linux_windows_and_conda(edition):
+    """Each install variant makes its environment, installs requirements.txt and opens problem 1 in this folder;
+    every file or folder it names is the edition's or the environment's programs, in the folder Python's own
+    install schemes give (``bin`` on macOS and Linux, ``Scripts`` on Windows) with the system's separator; the
+    Windows lines run in PowerShell 5 (no ``&&``). Elsewhere, a ``.venv/bin/`` command has its Windows spelling."""
+    readme = (edition / "README.md").read_text(encoding="utf-8")
+    variants = _install_variants(readme)
+    assert set(variants) == {"macOS", "Windows", "conda"}, variants
+    scripts = {label: sysconfig.get_paths(scheme, vars={"base": ".venv", "platbase": ".venv"})["scripts"] + "/"
+               for label, scheme in (("macOS", "posix_prefix"), ("Windows", "nt"))}
+    scripts["Windows"] = scripts["Windows"].replace("/", "\\")
+    first = {"macOS": ["python3", "-m", "venv", ".venv"], "Windows": ["py", "-m", "venv", ".venv"], "conda": ["conda", "create"]}
+    for label, lines in variants.items():
+        words = [word for line in lines for word in line]
+        assert lines[0][:len(first[label])] == first[label], (label, lines[0])
+        assert "requirements.txt" in words and "--notebook-dir=." in words, (label, lines)
+        assert lines[-1][0].endswith("jupyter") and lines[-1][1] == "lab", (label, lines[-1])  # opens JupyterLab
+        other_separator = "/" if label == "Windows" else "\\"
+        assert not any(other_separator in word for word in words), (label, lines)
+        named = [word for word in words if "/" in word or "\\" in word or word.endswith((".txt", ".ipynb"))]
+        for word in named:
+            if word.startswith(".venv"):
+                assert label in scripts and word in (scripts[label] + "python", scripts[label] + "jupyter"), (label, word)
+            else:
+                assert (edition / word.replace("\\", "/")).exists(), f"{label}: {word} is not in the edition"
+        assert any(word.endswith("p1_cartpole_finite_difference.ipynb") for word in named), label
+        if label == "Windows":
+            assert "&&" not in " ".join(words), lines
+    outside = re.sub(r"```.*?```", "", readme.split("## Install and open", 1)[1].split("\n## ", 1)[1], flags=re.DOTALL)
+    for program in re.findall(r"\.venv/bin/(\w+)", outside):
+        assert f"{scripts['Windows']}{program}" in outside, f".venv/bin/{program} without its Windows spelling"
 
 
 def test_the_student_edition_ships_the_tests_of_the_homework_only(edition):

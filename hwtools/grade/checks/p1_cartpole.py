@@ -16,7 +16,7 @@ import numpy as np
 
 from hwtools import facts
 from hwtools.grade.checks.behaviour import Behaviour
-from hwtools.grade.checks.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, exact, show
+from hwtools.grade.checks.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, difference_words, exact, show
 from hwtools.grade.episodes import OWN_LOOP
 from hwtools.grade.in_sandbox.probes import training_objective
 
@@ -399,6 +399,7 @@ def make_real_training(rng, variant):
             "fd_step": 0.35, "seed": int(rng.integers(0, 1000)), "initial_params": rng.normal(size=4) * 0.05}
 
 
+UPDATE_TOLERANCE = Tolerance(1e-9, 1e-9)  # an update equation (4) gives from the run's own evaluations
 MAX_JUDGED_EVALUATIONS = 2_000  # recorded evaluations a real run's judge reads (an honest run of 2 iterations makes 18)
 
 
@@ -456,20 +457,35 @@ def judge_real_rewards(args, result, expected, services):
                     if first_pair is None or (a, int(b_first.min())) < first_pair:
                         first_pair = (a, int(b_first.min()), a_score, float(b_scores[np.argmin(b_first)]))
                     moved = history[t - 1][i] + rate * ((a_score - b_scores) / (2.0 * h))
-                    good = np.flatnonzero(np.abs(history[t][i] - moved) <= 1e-9 + 1e-9 * np.abs(moved))
+                    good = np.flatnonzero(np.abs(history[t][i] - moved) <= UPDATE_TOLERANCE.limits(moved, None))
                     if good.size:
                         later = int(np.min(np.maximum(a, b_first[good])))
                         best = later if best is None else min(best, later)
             if best is None:
-                found = "no evaluations at theta[t-1] +- h e_i" if first_pair is None else \
-                    f"evaluations there give theta[{t}][{i}] = {show(history[t - 1][i] + rate * (first_pair[2] - first_pair[3]) / (2.0 * h))}"
-                return Verdict(False, want, f"theta[{t}][{i}] = {show(history[t][i])}: {found}")
+                return _update_off(args, history, t, i, first_pair)
             latest = max(latest, best)
         after = [index for index in _at(points, history[t]).tolist() if index > latest and scores[index] == rewards[t]]
         if not after:
             return Verdict(False, want, f"rewards[{t}] = {show(rewards[t])} is no evaluation of theta[{t}] made after "
                                         "its update")
     return Verdict(True)
+
+
+def _update_off(args, history, t, i, pair):
+    """The Verdict of a real run whose update t equation (4) does not give in coordinate i from the run's
+    own evaluations: ``pair`` (a, b, g(theta + h e_i), g(theta - h e_i)) is the first pair of them at
+    theta[t-1] +- h e_i with one seed, or None. Only the run's numbers: what it evaluated and returned."""
+    h, rate, before, actual = args["fd_step"], args["learning_rate"], history[t - 1][i], history[t][i]
+    where = f"theta[{t - 1}] + h e_{i} and theta[{t - 1}] - h e_{i} (h = fd_step = {show(h)})"
+    if pair is None:
+        return Verdict(False, f"theta[{t}][{i}] from equation (4) with eval_params at {where}, both with one seed",
+                       f"theta[{t}][{i}] = {show(actual)}, and eval_params was not called at both with one seed")
+    wanted = before + rate * (pair[2] - pair[3]) / (2.0 * h)
+    expected = (f"theta[{t}][{i}] = theta[{t - 1}][{i}] + learning_rate * (g+ - g-) / (2 h) = {show(before)} + "
+                f"{show(rate)} * ({show(pair[2])} - {show(pair[3])}) / {show(2.0 * h)} = {show(wanted)}, "
+                f"with g+ and g- your eval_params at {where}")
+    _, difference = difference_words(actual, wanted, UPDATE_TOLERANCE, args, lambda *_: f"theta[{t}][{i}], update {t}")
+    return Verdict(False, expected, f"theta[{t}][{i}] = {show(actual)}", difference, UPDATE_TOLERANCE.words())
 
 
 TODO_1_3_2 = (
