@@ -8,6 +8,10 @@ cap's, a run stopped in its hidden phase).
 
 from __future__ import annotations
 
+import json
+import shutil
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -183,3 +187,55 @@ def test_a_visible_run_s_notes_reach_the_visible_view_and_a_hidden_run_s_do_not(
     for name, shown in _views(entry).items():
         if name != "status":
             assert "a note of the visible run" in shown and "hidden run" not in shown, (name, shown)
+
+
+def test_the_relay_hidden_cheat_shows_no_hidden_input_under_the_user_fallback(tmp_path):
+    """The relay_hidden cheat (``cheats/relay_hidden.txt``) where runs share places: under the user
+    fallback (Gradescope's), graded twice as a regrade of the same code (the same hidden inputs).
+    2.2.1's hidden run leaves its inputs in every shared place it can write; 2.2.2's visible run,
+    which comes before any hidden run of its grading and after the first grading's hidden runs,
+    finds nothing to show, since what a run's user leaves is removed when the run ends: no hidden
+    input of the submission reaches the feedback or results.json, and 2.2.2 keeps its points.
+    (Under bubblewrap every place a run may write is its own: test_grading grades the cheat there.)"""
+    import threading
+
+    import containers
+    import test_grading as proof
+    from cheats import leak_search
+    from hwtools.grade import Grader, blocks
+    from hwtools.grade.grader import KIT_ROOT
+    from hwtools.grade.instructor import user_sandbox
+
+    folder, python = containers.user_sandbox_python()
+    layout, submission = blocks.load_layout(KIT_ROOT), tmp_path / "submission"
+    proof.build_cheat(layout, proof.parse_cheat(proof.CHEATS / "relay_hidden.txt"), submission, None)
+    relays = [Path(place, "hwgrade-relay-hidden") for place in user_sandbox.SHARED_PLACES]
+    seen, stop = set(), threading.Event()
+
+    def watch():  # the proof that the cheat wrote: its file lives as long as its run
+        while not stop.wait(0.005):
+            seen.update(str(path) for path in relays if path.exists())
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
+    try:
+        gradings = []
+        with containers.hidden_from_pool(KIT_ROOT):
+            for _ in range(2):
+                with Grader(KIT_ROOT, python=python, isolation="user", time_limit=10) as grader:
+                    assert grader.sandbox.kind == "user", grader.sandbox.how
+                    grader.wrong_solutions = []  # no known mistake to name: their runs are no part of this proof
+                    result = grader.grade(submission, todos=["2.2.1", "2.2.2"])
+                    gradings.append((result, leak_search.secrets_of(grader, layout, grader.case_sets(submission))))
+        assert "/tmp/hwgrade-relay-hidden" in seen, "the cheat left nothing in /tmp"
+        for result, secrets in gradings:
+            leak_search.assert_nothing_leaks(result, secrets)
+        for result, _ in gradings:  # nor anything of another run: 2.2.2's visible checks pass
+            assert "RELAYED" not in json.dumps(result)
+            assert [entry["auto_earned"] for entry in result["todos"]] == [0, 3], result["todos"]
+    finally:
+        stop.set()
+        watcher.join(timeout=5)
+        for path in relays:
+            path.unlink(missing_ok=True)
+        shutil.rmtree(folder, ignore_errors=True)
