@@ -587,6 +587,24 @@ def test_preview_gives_the_grade_of_natural_solutions_on_the_visible_checks(grad
     assert all(visible_verdicts(shown, [todo]).values()), render(shown)
 
 
+def test_a_1_2_1_that_returns_a_list_is_named_where_the_students_1_3_2_fails_on_it(grader, layout, student_edition,
+                                                                                  tmp_path):
+    """Issue 32.5: a right 1.2.1 that returns a list keeps its points, and its check says that the
+    training code does arithmetic on the gradient; the preview runs the student's own 1.2.1 in 1.3.2's
+    check, where learning_rate * list fails: 1.3.2's check names 1.2.1 and keeps the grade's points."""
+    body = natural_body(NATURAL / "1.2.1_returns_list.py")
+    kit = write_kit(layout, tmp_path / "kit", {"1.2.1": body})  # the reference's 1.3.2
+    graded = {entry["id"]: entry for entry in grader.grade(kit, todos=["1.2.1", "1.3.2"])["todos"]}
+    shown = {entry["id"]: entry for entry in preview(student_edition, kit, ["1.2.1", "1.3.2"], tmp_path / "p.json")["todos"]}
+    for todo in ("1.2.1", "1.3.2"):  # preview = grade: the points, whichever 1.2.1 ran
+        assert shown[todo]["auto_earned"] == graded[todo]["auto_earned"] == TODO_BY_ID[todo].auto, \
+            (todo, check_lines(shown[todo]))
+    assert "return an array (np.array(...))" in " ".join(check_lines(shown["1.2.1"])), check_lines(shown["1.2.1"])
+    assert shown["1.3.2"]["blamed_on"] == ["1.2.1"] and "blamed_on" not in graded["1.3.2"]
+    first = " ".join(check_lines(shown["1.3.2"])[0:2])
+    assert "probably caused by TODO 1.2.1, which returns a list" in first, check_lines(shown["1.3.2"])
+
+
 @pytest.mark.parametrize("path", WRONG_FILES, ids=lambda path: path.stem)
 def test_preview_gives_the_grade_of_wrong_solutions_on_the_visible_checks(grader, layout, student_edition, tmp_path,
                                                                        path):
