@@ -2,8 +2,9 @@
 
 Three ways to run it (``Sandbox.kind``), the strongest that works here chosen by ``isolation="auto"``:
 
-``bwrap`` (bubblewrap, ``bwrap_sandbox.py``): the worker runs in new namespaces (``--unshare-all``: no network, its own
-processes, hostname and IPC), as an unprivileged user without capabilities, and sees only:
+``bwrap`` (bubblewrap, ``bwrap_sandbox.py``): the worker runs in new namespaces (no network, its own processes,
+hostname and IPC), as an unprivileged user without capabilities (a root grader's: ``HOST_ID`` on the host, with
+RLIMIT_NPROC, in a user namespace of the run's own: ``host_user_namespace``), and sees only:
 
 * the operating system's ``/usr`` (and the ``/bin``, ``/lib`` links into it), read-only;
 * the Python installation and the virtual environment that run it, read-only, at their paths;
@@ -87,7 +88,8 @@ try:  # macOS and Linux; Windows has neither (its runs have no CPU or memory lim
 except ImportError:
     fcntl = resource = None
 try:  # the instructor's kit (the student edition has no sandbox: hwtools/grade/instructor/ is not in it)
-    from hwtools.grade.instructor.bwrap_sandbox import bwrap_options, options_pipe, probe_isolation, sandbox_init, wait_gone
+    from hwtools.grade.instructor.bwrap_sandbox import (bwrap_options, host_user_namespace, options_pipe, probe_isolation,
+                                                        readable_copy, sandbox_init, wait_gone)
 except ImportError:
     probe_isolation = None
 NO_SANDBOX_HERE = "the student edition has no sandbox (the preview runs the student's own code, unsandboxed)"
@@ -231,23 +233,24 @@ class Sandbox:
         """prlimit's options and the worker's own limit arguments for a run of CPU limit ``time_limit``."""
         cpu = max(1, int(time_limit + 0.999))
         options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}", "--core=0"]
-        if (kind or self.kind) == "user":
+        kind = kind or self.kind
+        if kind == "user" or kind == "bwrap" and os.geteuid() == 0:  # bwrap: in host_user_namespace's namespace
             from hwtools.grade.instructor.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
 
             options.append(f"--nproc={MAX_PROCESSES}")
         return options, [str(cpu), str(self.memory_limit)]
 
-    def command(self, kit_dir, time_limit, run_folder=None, kind=None):
+    def command(self, kit_dir, time_limit, run_folder=None, kind=None, userns=None):
         """The command line of one run (``run_folder``: the user fallback's private folder; ``kind``:
-        ``run_kind``'s, default ``self.kind``) and the options bubblewrap reads from a pipe (None for
-        the other kinds)."""
+        ``run_kind``'s, default ``self.kind``; ``userns``: bubblewrap's user namespace, where the
+        grader makes it) and the options bubblewrap reads from a pipe (None for the other kinds)."""
         kind = kind or self.kind
         options, limits = self.limits(time_limit, kind)
         prlimit = [shutil.which("prlimit"), *options, "--"] if shutil.which("prlimit") else []
         if kind == "bwrap":
             return (prlimit + [shutil.which("bwrap"), "--args", "{fd}", "--info-fd", "{info}", "--",
                                os.path.abspath(self.python), "-B", "-s", "/grader/worker.py", "/kit"] + limits,
-                    bwrap_options(self.python, kit_dir))
+                    bwrap_options(self.python, kit_dir, userns))
         if kind == "user":
             return prlimit + run_folder.command(self.python) + limits, None
         return prlimit + [self.python, "-B", "-s", str(WORKER), str(kit_dir)] + limits, None
@@ -298,7 +301,7 @@ class WorkerProcess:
         self.disk_used = None  # bytes of files the run held when it passed MAX_DISK_BYTES (user fallback)
         self._watcher, self._watch_ends = None, threading.Event()
         self.ended = threading.Event()  # set once the run's processes are gone (or given up on) and its turn is free
-        env, cwd, fds, info = {}, self._scratch.name, (), None
+        env, cwd, fds, info, userns = {}, self._scratch.name, (), None, None
         try:
             if self.kind == "user":
                 from hwtools.grade.instructor.user_sandbox import RunFolder  # noqa: PLC0415
@@ -309,7 +312,10 @@ class WorkerProcess:
                 home = Path(self._scratch.name) / "home"
                 home.mkdir()
                 env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
-            command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind)
+            if self.kind == "bwrap":
+                userns = host_user_namespace()
+                kit_dir = kit_dir if userns is None else readable_copy(kit_dir, self._scratch.name)
+            command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind, userns)
             if self.kind != "none":  # the run as a whole bounded (processes, memory with tmpfs), where it can be
                 from hwtools.grade.instructor.cgroups import RunGroup  # noqa: PLC0415 - Linux only
 
@@ -318,7 +324,7 @@ class WorkerProcess:
                     command = self.group.wrap(command)
             if options is not None:
                 info = os.pipe()
-                fds = (options_pipe(options), info[1])
+                fds = (options_pipe(options), info[1]) + (() if userns is None else (userns,))
                 command = [part.replace("{fd}", str(fds[0])).replace("{info}", str(info[1])) for part in command]
             self._stderr = open(Path(self._scratch.name) / "stderr", "w+b")  # noqa: SIM115 - closed in finish
             try:

@@ -768,14 +768,19 @@ def test_under_bubblewrap_every_writable_place_is_the_run_s_own_and_bounded(isol
     assert values(run(kit, isolated)).tolist()[0] <= 16
 
 
+@pytest.mark.parametrize("group", ["cgroup", "no cgroup"])
 @pytest.mark.parametrize("mode", ["isolated", "user"])
-def test_a_run_s_processes_are_bounded_as_a_whole(mode, request, tmp_path):
+def test_a_run_s_processes_are_bounded_as_a_whole(mode, group, request, monkeypatch, tmp_path):
     """A run that forks sleeping children until it cannot (at most 200 tried) gets fewer than
-    MAX_PROCESSES of them: the run's cgroup (pids.max), or under the user fallback its user's
-    process limit."""
+    MAX_PROCESSES of them: the run's cgroup (pids.max), else its process limit (RLIMIT_NPROC: the
+    user fallback's user; a root grader's bubblewrap sandbox, counted in its own user namespace)."""
     box = request.getfixturevalue(mode)
-    if box.kind == "bwrap" and cgroups.RunGroup.make(box.memory_limit) is None:
-        pytest.skip("no cgroup here: bubblewrap's runs have no process limit (docs/grading.md)")
+    if group == "no cgroup":
+        monkeypatch.setattr(cgroups.RunGroup, "make", classmethod(lambda cls, *args, **kwargs: None))
+    elif cgroups.RunGroup.make(box.memory_limit) is None:
+        pytest.skip("no cgroup here")
+    if box.kind == "bwrap" and os.geteuid() != 0:
+        pytest.skip("a bubblewrap grader that is not root has no process limit of the run's own (docs/grading.md)")
     kit = make_kit(tmp_path, textwrap.dedent("""
         children = 0
         for _ in range(200):

@@ -10,6 +10,7 @@ worker's own environment. Every writable place is a tmpfs of the run's own, gone
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import json
 import os
@@ -25,6 +26,8 @@ from hwtools.grade.kits import WORKER, worker_env
 
 TMPFS_BYTES = 64 * 1024**2  # the run's /tmp
 SHM_BYTES = 16 * 1024**2  # the run's /dev/shm (the rest of its /dev is read-only)
+HOST_ID = 2_000_000_000  # a root grader's sandbox runs as this uid and gid on the host: no account's, never root's
+CLONE_NEWUSER = 0x10000000
 
 
 @functools.lru_cache(maxsize=None)
@@ -63,11 +66,53 @@ def _system_binds():
     return args
 
 
-def bwrap_options(python, kit_dir):
+def _unshare_user():
+    if ctypes.CDLL(None, use_errno=True).unshare(CLONE_NEWUSER) != 0:
+        raise OSError(ctypes.get_errno(), "unshare(CLONE_NEWUSER) failed")
+
+
+def host_user_namespace():
+    """A root grader's: a descriptor of a new user namespace whose uid and gid 65534 are HOST_ID on
+    the host and 65533 root's (None for any other grader). bubblewrap (``--userns``) makes the
+    sandbox in it as 65533, so it mounts whatever root may reach (a Python under ``/root``), then
+    runs the worker as 65534 without capabilities and with ``no_new_privs`` (it cannot become
+    65533). Made by bwrap itself, the sandbox's uid would be root's on the host, which
+    RLIMIT_NPROC never binds; as HOST_ID its processes are counted in this namespace alone, at
+    most MAX_PROCESSES (``Sandbox.limits``)."""
+    if os.geteuid() != 0:
+        return None
+    try:
+        holder = subprocess.Popen(["/bin/sleep", "60"], preexec_fn=_unshare_user, env={}, close_fds=True,  # noqa: PLW1509
+                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except subprocess.SubprocessError:
+        raise OSError("no user namespace can be made here (unshare refused)") from None
+    try:
+        for name in ("uid_map", "gid_map"):
+            with open(f"/proc/{holder.pid}/{name}", "w", encoding="ascii") as handle:
+                handle.write(f"65533 0 1\n65534 {HOST_ID} 1\n")
+        return os.open(f"/proc/{holder.pid}/ns/user", os.O_RDONLY)
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def readable_copy(kit_dir, folder):
+    """A copy of ``kit_dir`` in ``folder`` (root's own, 0700: no other user reaches it) that the
+    sandbox's user (HOST_ID) may read: mounted as ``/kit``, only the copy's own modes count."""
+    copy = Path(shutil.copytree(kit_dir, Path(folder) / "kit", symlinks=False))
+    for path in [copy, *copy.rglob("*")]:
+        path.chmod(0o755 if path.is_dir() else 0o644)
+    return copy
+
+
+def bwrap_options(python, kit_dir, userns=None):
     """bubblewrap's options (given to it through a pipe, not on its command line) that run a
-    Python on ``kit_dir`` with ``WORKER`` as ``/grader/worker.py``."""
-    args = ["--unshare-all", "--unshare-user", "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL",
-            "--die-with-parent", "--new-session", "--hostname", "sandbox"]
+    Python on ``kit_dir`` with ``WORKER`` as ``/grader/worker.py`` (in user namespace ``userns``, a
+    descriptor from ``host_user_namespace``, else in one of bwrap's own)."""
+    users = ["--unshare-user"] if userns is None else ["--userns", str(userns)]
+    args = ["--unshare-ipc", "--unshare-pid", "--unshare-net", "--unshare-uts", "--unshare-cgroup-try", *users,
+            "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL", "--die-with-parent", "--new-session",
+            "--hostname", "sandbox"]
     args += _system_binds()
     # /tmp first: a Python installed under /tmp (a CI checkout there) is bound on top of it, not hidden by it
     args += ["--proc", "/proc", "--dev", "/dev", "--size", str(SHM_BYTES), "--tmpfs", "/dev/shm", "--remount-ro", "/dev",
@@ -103,15 +148,20 @@ def probe_isolation(python):
     if bwrap is None:
         return False, "bubblewrap (bwrap) is not installed (Debian/Ubuntu: apt-get install bubblewrap)"
     with tempfile.TemporaryDirectory(prefix="hwgrade-probe-") as kit:
-        fd = options_pipe(bwrap_options(python, kit))
+        fds = ()
         try:
-            result = subprocess.run([bwrap, "--args", str(fd), "--", os.path.abspath(python), "-c", "import numpy"],
+            userns = host_user_namespace()
+            fds = () if userns is None else (userns,)
+            fds = (options_pipe(bwrap_options(python, kit, userns)), *fds)
+            code = "import numpy; open('/grader/worker.py').close()"  # both readable by the sandbox's user
+            result = subprocess.run([bwrap, "--args", str(fds[0]), "--", os.path.abspath(python), "-c", code],
                                     capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL, env={},
-                                    pass_fds=(fd,))
+                                    pass_fds=fds)
         except (OSError, subprocess.TimeoutExpired) as error:
             return False, f"bwrap could not start: {error}"
         finally:
-            os.close(fd)
+            for fd in fds:
+                os.close(fd)
     if result.returncode != 0:
         reason = " ".join(result.stderr.split())[:300]
         return False, f"bwrap cannot create a sandbox here ({reason or 'exit code ' + str(result.returncode)})"
