@@ -212,7 +212,7 @@ def _import_error(error):
     kit = os.path.realpath(probes.KIT_DIR) + os.sep
     frames = [frame for frame in traceback.extract_tb(error.__traceback__) if os.path.realpath(frame.filename).startswith(kit)]
     where = f" at {os.path.relpath(frames[-1].filename, kit)} line {frames[-1].lineno}" if frames else ""
-    return channel.text(f"{type(error).__name__}: {error} (raised while hwlib was imported{where})")
+    return channel.text(f"{type(error).__name__}: {error} ({probes.IMPORT_FAILED}{where})")
 
 
 def _refusing(why, original):
