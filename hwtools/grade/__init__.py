@@ -22,7 +22,9 @@ The result is a JSON-serialisable dict:
   limit, crashed, graded by hand), ``checks`` (what was checked, in words, its points, passed,
   ``failed_on`` visible/hidden), ``first_failure`` (for a visible input: the input, expected and
   actual value; for a hidden one only the check), ``notes`` (what was seen: stopped runs,
-  warnings, code outside the blocks, suspicious calls); ``grader_error`` only where the grader
+  warnings, code outside the blocks, suspicious calls); ``breaks_callers`` only where an answer,
+  right or not, breaks the code that calls it (1.2.1's gradient as a list: in words, also a note);
+  ``grader_error`` only where the grader
   itself failed on that TODO (it is then not graded, and a class's status says so);
 * ``notes``, ``seconds``.
 

@@ -8,7 +8,10 @@ for the other TODOs a check calls (``checks.PREVIEW_NEEDS``: 1.3.2 calls 1.1.1, 
 own visible checks and are not themselves explained by another (the TODOs *at fault*), and then:
 
 * the entry says so first: ``blamed_on`` and ``blame`` ("probably caused by TODO 1.2.1, which
-  fails its own check"), which the check cell prints as its first line;
+  fails its own check"), which the check cell prints as its first line; a TODO that passes its
+  checks but returns what breaks the code calling it (``breaks_callers``: 1.2.1's gradient as a
+  list, where 1.3.2 computes learning_rate * gradient) is at fault the same way ("which returns a
+  list where ...");
 * its points count as earned in the preview, as the grade (which runs it with the reference's
   1.2.1) would give them to a right TODO: the preview's total is the grade's on the visible part
   wherever the blamed TODO is right. A TODO whose own code is still the stub is never credited.
@@ -45,9 +48,13 @@ def needed(entries):
     return {need for entry in entries if fails_visible(entry) for need in checks.PREVIEW_NEEDS.get(entry["id"], ())}
 
 
-def _in_words(todos):
-    names = " and ".join(f"TODO {todo}" for todo in todos)
-    return f"probably caused by {names}, which {'fails its own check' if len(todos) == 1 else 'fail their own checks'}"
+def _in_words(todos, judged):
+    why = [judged[todo].get("breaks_callers") if not fails_visible(judged[todo]) else "" for todo in todos]
+    if not any(why):
+        names = " and ".join(f"TODO {todo}" for todo in todos)
+        return f"probably caused by {names}, which {'fails its own check' if len(todos) == 1 else 'fail their own checks'}"
+    return "probably caused by " + " and ".join(f"TODO {todo}, which {reason or 'fails its own check'}"
+                                                for todo, reason in zip(todos, why))
 
 
 def apply(entries, judged, stubs, preview):
@@ -63,6 +70,8 @@ def apply(entries, judged, stubs, preview):
             if entry is not None and fails_visible(entry):
                 others = [root for need in checks.PREVIEW_NEEDS.get(todo, ()) for root in faults(need)]
                 at_fault[todo] = list(dict.fromkeys(others)) or [todo]
+            elif entry is not None and entry.get("breaks_callers"):  # it passes, but breaks the code calling it
+                at_fault[todo] = [todo]
         return at_fault[todo]
 
     for entry in entries:
@@ -71,7 +80,7 @@ def apply(entries, judged, stubs, preview):
         if not preview or todo in stubs or not fails_visible(entry) or faults(todo) == [todo]:
             continue
         blamed = faults(todo)
-        entry["blamed_on"], entry["blame"] = blamed, _in_words(blamed)
+        entry["blamed_on"], entry["blame"] = blamed, _in_words(blamed, judged)
         entry["auto_earned"] = TODO_BY_ID[todo].auto
         _unname_mistake(entry)  # the mistake it matches is most likely the TODO at fault's
         entry["notes"].append(f"its checks ran your {' and '.join(f'TODO {t}' for t in blamed)}; its points count as "

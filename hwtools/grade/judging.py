@@ -18,7 +18,7 @@ from hwtools.grade.checks.verdicts import Verdict, show
 from hwtools.grade.in_sandbox.channel import fingerprint, text
 from hwtools.todos import TODO_BY_ID
 
-_STATUS = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed"}
+_STATUS = {"timeout": "time limit", "disk": "disk limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed"}
 
 
 def service_key(probe, args):
@@ -91,6 +91,8 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
                 result = results.get(case_id) or broker.missing(outcome, isinstance(student, str) and student)
                 if visible:
                     warnings.extend(result.get("warnings", []))
+                    if behaviour.breaks_callers and result["status"] == "ok":
+                        entry["breaks_callers"] = entry.get("breaks_callers") or behaviour.breaks_callers(result)
                 expected = expected_of(case_id, behaviour, reference)
                 if behaviour.exact and expected is None:
                     continue  # a hidden case with only an answer key: not checked here
@@ -125,6 +127,9 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
     visible_notes.extend(seen_notes)
     for warning in dict.fromkeys(warnings):  # warnings of visible inputs only
         entry["notes"].append(f"warning (not a failure): {scrub(warning)}")
+        visible_notes.append(entry["notes"][-1])
+    if entry.get("breaks_callers"):  # right or not, what breaks the code calling it (blame.py)
+        entry["notes"].append(f"not a failure, but your code {entry['breaks_callers']}")
         visible_notes.append(entry["notes"][-1])
     entry["visible_notes"] = visible_notes
     if known is not None and any(check["failed_on"] == "visible" for check in entry["checks"]):

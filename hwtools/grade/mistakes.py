@@ -32,6 +32,7 @@ import numpy as np
 
 from hwtools.grade import checks
 from hwtools.grade.checks.verdicts import Tolerance, same_numbers
+from hwtools.grade.in_sandbox import probes
 
 WRONG_SOLUTIONS = Path("instructor") / "wrong_solutions"
 PROPERTY_TOLERANCE = Tolerance(1e-9, 1e-9)  # values of checks judged by property (1.3.x): the judges' own
@@ -99,7 +100,8 @@ def signature(visible, results, entry):
     for case_id, _, _ in visible:
         result = results.get(case_id) or {"status": "error", "error": "not answered"}
         if result["status"] == "ok":
-            case = {"values": {name: np.asarray(value) for name, value in result["values"].items()}}
+            case = {"values": {name: np.asarray(value) for name, value in result["values"].items()
+                               if name not in probes.FORMS}}  # a list or an array: the same mistake
         else:
             case = {"error": str(result.get("error", ""))[:200]}  # its whole text: the same mistake, the same words
         case["episodes"] = _episodes(result)

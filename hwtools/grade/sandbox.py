@@ -98,6 +98,8 @@ DEFAULT_MEMORY_LIMIT = 1 * GiB  # address space per worker run
 GRADER_MEMORY_LIMIT = 4 * GiB  # address space of the trusted grader itself (command lines)
 WALL_FACTOR, WALL_SLACK = 3.0, 10.0  # the wall-clock backstop: WALL_FACTOR * CPU limit + WALL_SLACK
 MAX_FILE_BYTES = 64 * 1024**2  # any one file a run writes (its error stream included)
+MAX_DISK_BYTES = 256 * 1024**2  # all files a run under the user fallback holds at once (bubblewrap: its tmpfs sizes)
+DISK_POLL_SECONDS = 0.25  # how often the user fallback's files are measured while a run lives
 STDERR_TAIL = 4000  # characters of the worker's error stream kept
 TOKEN_VARIABLE = "HWGRADE_SANDBOX"
 KINDS = ("auto", "bwrap", "user", "none")
@@ -293,6 +295,8 @@ class WorkerProcess:
         self._token = uuid.uuid4().hex
         self._run_folder = self._init = self.group = None
         self.memory_peak = None  # bytes the whole run held at most, where it ran in a cgroup
+        self.disk_used = None  # bytes of files the run held when it passed MAX_DISK_BYTES (user fallback)
+        self._watcher, self._watch_ends = None, threading.Event()
         self.ended = threading.Event()  # set once the run's processes are gone (or given up on) and its turn is free
         env, cwd, fds, info = {}, self._scratch.name, (), None
         try:
@@ -325,6 +329,9 @@ class WorkerProcess:
                 for fd in fds:
                     os.close(fd)
             self._pipes = Pipes(self.process.stdin, self.process.stdout)  # every read and write has a deadline
+            if self._run_folder is not None:
+                self._watcher = threading.Thread(target=self._watch_disk, daemon=True)
+                self._watcher.start()
             if info is not None:
                 self._init = sandbox_init(info[0], self.process.pid)
         except BaseException:
@@ -333,6 +340,20 @@ class WorkerProcess:
         finally:
             if info is not None:
                 os.close(info[0])
+
+    def _watch_disk(self):
+        """The user fallback's disk bound: every DISK_POLL_SECONDS while the run lives, the files its
+        user holds in its home and the shared places are measured; past MAX_DISK_BYTES every
+        process of the user is killed (the run's verdict: "disk")."""
+        from hwtools.grade.instructor.user_sandbox import SHARED_PLACES, disk_used, kill_user  # noqa: PLC0415
+
+        folder = self._run_folder
+        while not self._watch_ends.wait(DISK_POLL_SECONDS):
+            used = disk_used(folder.uid, folder.gid, (str(folder.home), *SHARED_PLACES))
+            if used > MAX_DISK_BYTES:
+                self.disk_used, self._killed = used, True
+                kill_user(folder.uid, folder.gid)
+                return
 
     def begin(self):
         """Start the run proper (once; ``send`` calls it): an exclusive run first waits until no other
@@ -373,6 +394,8 @@ class WorkerProcess:
         """The next answer (a dict), or "status:detail" (timeout, ended, garbled)."""
         deadline = self.deadline if deadline is None else min(deadline, self.deadline)
         answer = self._pipes.receive(deadline)
+        if answer == "ended:" and self.disk_used is not None:
+            return "disk:"
         if answer == "ended:" and self._cpu_limit_reached():
             return f"timeout:the CPU-time limit of {self.sandbox.limits(self.time_limit, self.kind)[1][0]} s was reached"
         if isinstance(answer, str) and answer.startswith("timeout:"):
@@ -409,6 +432,9 @@ class WorkerProcess:
     def _cleanup(self):
         try:
             gone = True
+            if self._watcher is not None:  # stopped before the run's user is freed for another run
+                self._watch_ends.set()
+                self._watcher.join()
             if self._run_folder is not None:
                 gone = self._run_folder.end()
             if self._init is not None:

@@ -171,6 +171,18 @@ def test_a_known_mistake_with_another_constant_is_named_as_that_mistake(grader, 
     assert points(result)[todo] <= 0.3 * TODO_BY_ID[todo].auto, (path.name, points(result)[todo])
 
 
+def test_a_known_mistake_that_returns_a_list_is_named_as_that_mistake(grader, layout, tmp_path):
+    """The answer's form (a list, where the wrong solution returns an array: probes.FORMS) tells no
+    mistake apart; the values do, and the note says what the list breaks."""
+    body = ("gradient = []\nfor i in range(len(x)):\n    step = np.zeros_like(x)\n    step[i] = h[i]\n"
+            "    gradient.append((f(x - step) - f(x + step)) / (2.0 * h[i]))\nreturn gradient")
+    kits.write_submission(layout, tmp_path, {"1.2.1": body}, others="reference")
+    entry = next(entry for entry in grader.grade(tmp_path, todos=["1.2.1"])["todos"])
+    expected = mistakes.read_wrong_solution(WRONG / "finite_diff_flipped_sign.txt")
+    assert (entry.get("mistake") or {}).get("diagnosis") == expected.diagnosis, entry.get("mistake")
+    assert entry["breaks_callers"].startswith("returns a list where the training code does arithmetic")
+
+
 # Mistakes the issue names, with the points they keep: the credit follows what is right.
 MISTAKES = {
     "score <= 0 gives action 1 (the tie)": ("1.1.1", "action = int(np.dot(self.params, obs) <= 0)", 0),

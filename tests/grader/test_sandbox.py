@@ -828,6 +828,29 @@ def test_a_run_s_memory_is_bounded_as_a_whole(mode, request, tmp_path):
     assert worker.memory_peak is not None and worker.memory_peak <= box.memory_limit
 
 
+@pytest.mark.parametrize("deleted", [False, True])
+def test_a_user_run_s_files_are_bounded_as_a_whole(deleted, user, tmp_path):
+    """A run under the user fallback that writes 2,048 MiB in files of 64 MiB (each under the
+    file-size limit), in /tmp and in its home, named or deleted while it holds them open, is killed
+    soon after its files pass MAX_DISK_BYTES: its verdict says so."""
+    kit = make_kit(tmp_path, textwrap.dedent(f"""
+        held = []
+        for number in range(32):
+            path = os.path.join(("/tmp", os.getcwd())[number % 2], f"fill{{number}}")
+            held.append(open(path, "wb"))
+            if {deleted}:
+                os.unlink(path)
+            for _ in range(64):
+                held[-1].write(bytes(1024**2))
+            held[-1].flush()
+        values = np.array([0.0])
+    """))
+    worker = user.start(kit)
+    outcome, _ = broker.run_cases(worker, None, [("c0", "sigmoid", {"z": np.array([0.0])})], [], None)
+    assert (outcome.status, outcome.detail) == ("disk", broker.STOPS["disk"])
+    assert sandbox.MAX_DISK_BYTES < worker.disk_used < 32 * 64 * 1024**2  # stopped before it wrote them all
+
+
 def test_close_shared_finds_every_world_writable_folder_but_the_shared_places(tmp_path):
     """setup.sh's ``close-shared`` takes the write permission away from these: a folder every user
     may write to, however deep, is found; the shared places (emptied of a run's files after it) and

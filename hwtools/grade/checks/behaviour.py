@@ -38,6 +38,9 @@ class Behaviour:
     exact: bool = False  # judged against the reference's values on the same input
     judged_on: str = ""  # the key of another behaviour of the TODO whose cases this one judges (it has none of its own)
     value: bool = False  # checks the TODO's value: while it fails on any input, the TODO keeps MOST_KEPT at most
+    # breaks_callers(result) -> what of an answer breaks the code that calls it (the TODOs that do, blame.py),
+    # in words ("returns a list where ..."), or "": a note, never a verdict
+    breaks_callers: object = None
 
     @property
     def points(self):

@@ -156,12 +156,21 @@ FD_TOLERANCE = Tolerance(1e-4, 1e-4, "the right formula in float32 is off by at 
                                      "a wrong one by 5e-3 * (|expected| + 1) or more")
 
 
+def _no_arithmetic(result):
+    """What a gradient returned as a list or tuple breaks: 1.3.2's update (theta + learning_rate * gradient)."""
+    form = int(result["values"]["form"])
+    if not form:
+        return ""
+    return (f"returns a {('list', 'tuple')[form - 1]} where the training code does arithmetic on the gradient "
+            "(learning_rate * gradient): return an array (np.array(...))")
+
+
 TODO_1_2_1 = (
     Behaviour("1.2.1", "equation-3", "central differences, equation (3), with a different step h_i for each "
               "coordinate: only coordinate i moves, by +-h_i, and the difference is divided by 2 h_i; on functions "
               "where a forward difference, or a point other than x, is off (the answer: N numbers, shaped like x "
               "or in a list)", "finite_diff", make_fd_steps, exact("gradient", FD_TOLERANCE, _coordinate),
-              exact=True, value=True),
+              exact=True, value=True, breaks_callers=_no_arithmetic),
     Behaviour("1.2.1", "one-step", "central differences with one step h for every coordinate (h a number or "
               "equal steps), also for a single number x (a number or one number in a list or array)",
               "finite_diff", make_fd_uniform, exact("gradient", FD_TOLERANCE, _coordinate), visible_count=3,

@@ -158,10 +158,17 @@ def fd_inputs(args):
     return f, x, h
 
 
-@probe(gradient=(_FLOAT, (0, 1, 2)))
+@probe(gradient=(_FLOAT, (0, 1, 2)), form=(_INT, (0,)))
 def probe_finite_diff(args):
+    """The gradient, and its ``form``: 0 an array (or a number for a single number x), 1 a list, 2 a
+    tuple, on which the training code's arithmetic (learning_rate * gradient) fails."""
     finite_diff = _import("hwlib.finite_diff")
-    return {"gradient": numbers(finite_diff.scalar_finite_diff(*fd_inputs(args)), "scalar_finite_diff")}
+    gradient = finite_diff.scalar_finite_diff(*fd_inputs(args))
+    form = 1 if isinstance(gradient, list) else 2 if isinstance(gradient, tuple) else 0
+    return {"gradient": numbers(gradient, "scalar_finite_diff"), "form": np.int64(form)}
+
+
+FORMS = ("form",)  # values that tell an answer's form, not its numbers: no known mistake is told by them
 
 
 def eval_inputs(args):

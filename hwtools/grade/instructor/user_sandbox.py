@@ -15,7 +15,9 @@ What a run gets (the grader must run as root to start it):
   that refuses every ``socket()`` (no network, no Unix-socket daemons), io_uring and new namespaces;
 * the kit, the worker and a home folder in a private folder (``root:<the run's group>``, 0750;
   only the home is writable), deleted after the run;
-* the same CPU, memory and file-size limits as in bubblewrap, and a cap on its processes.
+* the same CPU, memory and file-size limits as in bubblewrap, a cap on its processes, and a bound
+  on all its files (its home and the shared places, measured by ``disk_used`` while it lives:
+  the grader kills the run past ``MAX_DISK_BYTES``).
 
 When the run ends every process of its user is killed, found by uid (``kill(-1)`` as that user,
 then SIGKILL from root to each one a ``/proc`` scan finds, until none is left), so a child that left
@@ -242,6 +244,45 @@ def _owned_files(uid, gid, places=SHARED_PLACES):
             elif stat.S_ISDIR(info.st_mode) and _may_enter(info, uid, gid):
                 pending.append(entry.path)
     return found
+
+
+def disk_used(uid, gid, places):
+    """The bytes that regular files of ``uid`` hold in ``places``, each file once, searched in every
+    folder there that user may write to (it can have made files nowhere else), with the files its
+    processes deleted but still hold open or mapped."""
+    paths, pending, seen, total = [], [place for place in places if os.path.isdir(place)], set(), 0
+    while pending:
+        try:
+            entries = list(os.scandir(pending.pop()))
+        except OSError:
+            continue
+        for entry in entries:
+            try:
+                info = entry.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            if stat.S_ISDIR(info.st_mode) and (info.st_uid == uid or info.st_mode & (
+                    stat.S_IWGRP if info.st_gid == gid else stat.S_IWOTH)):
+                pending.append(entry.path)
+            elif info.st_uid == uid:
+                paths.append(entry.path)
+    for pid in processes_of(uid):
+        for table in ("fd", "map_files"):
+            try:
+                paths += [f"/proc/{pid}/{table}/{name}" for name in os.listdir(f"/proc/{pid}/{table}")]
+            except OSError:
+                continue
+    for path in paths:
+        held = path.startswith("/proc/")
+        try:
+            info = os.stat(path, follow_symlinks=held)
+        except OSError:
+            continue
+        if stat.S_ISREG(info.st_mode) and (info.st_dev, info.st_ino) not in seen and (
+                not held or info.st_nlink == 0 and info.st_uid == uid):
+            seen.add((info.st_dev, info.st_ino))
+            total += info.st_blocks * 512
+    return total
 
 
 def _owned_ipc(uid):
