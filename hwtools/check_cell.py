@@ -8,7 +8,8 @@ visible input and the line of Python that rebuilds it (``hwtools.cases``), the e
 actual value, where they differ and the tolerance (the same fields as every report,
 ``feedback.FAILURE_FIELDS``). An untouched TODO (its stub raises ``TodoNotDone``) prints
 "TODO 1.2.1 is not done yet"; a check whose failure another TODO probably caused says so first
-("probably caused by TODO 1.2.1, which fails its own check": ``hwtools/grade/blame.py``).
+("probably caused by TODO 1.2.1, which fails its own check": ``hwtools/grade/blame.py``); a kit
+that raises while imported (a NameError at module level, sys.exit) says that error and its line first.
 
 * In the student edition the grader compares with the answer key the release build wrote,
   runs the student's own code for the other TODOs, and only has visible checks.
@@ -36,6 +37,7 @@ import textwrap
 from pathlib import Path
 
 from hwtools.grade.feedback import FAILURE_FIELDS, field_lines
+from hwtools.grade.in_sandbox.probes import IMPORT_FAILED
 from hwtools.grade.judging import visible_view
 from hwtools.grade.processes import kill_tree
 from hwtools.not_done import KIT_ROOT, not_done_in_text, where
@@ -162,6 +164,10 @@ def check_lines(entry):
     mistake = (entry.get("mistake") or {}).get("diagnosis")
     if mistake:  # what is wrong, in the first lines (each failing check below says which of its inputs show it)
         summary = f"{summary}: {mistake}"
+    raised = [failure["actual"] for failure in (_visible_failure(entry, check) for check in checks)
+              if failure and IMPORT_FAILED in failure["actual"]]
+    if raised and not mistake:  # the kit stops while imported: every check fails the same way
+        summary = f"{summary}: {raised[0]}"
     lines = _wrap(f"TODO {todo} ({title}): {summary}", "")
     for check, ok in zip(checks, visible_pass):
         lines += _wrap(f"{'pass' if ok else 'FAIL'}  {check['check']}", "  ", hang=6)

@@ -294,6 +294,24 @@ def test_a_check_cell_names_the_todo_at_fault(wrong_edition):
     assert "probably caused by TODO 1.2.1, which fails its own check" in " ".join(" ".join(lines[:2]).split()), lines
 
 
+@pytest.mark.parametrize("line", ["STEP = undefined_step", "import sys; sys.exit(3)"])
+def test_a_kit_that_raises_while_imported_names_the_error_and_its_line(wrong_edition, tmp_path, line):
+    """Issue 32: the student's own hwlib/finite_diff.py raises at import time (a NameError at module
+    level, sys.exit): the check names that error and where, not a worker that "ended (sys.exit?)"."""
+    import shutil
+
+    kit = shutil.copytree(wrong_edition, tmp_path / "kit")
+    path = kit / "hwlib" / "finite_diff.py"
+    lines = path.read_text(encoding="utf-8").splitlines()
+    at = lines.index("import numpy as np") + 1
+    path.write_text("\n".join(lines[:at] + [line] + lines[at:]) + "\n", encoding="utf-8")
+    lines = check_lines(grade_todo("1.2.1", kit=kit))
+    first = " ".join(" ".join(lines[:next(i for i, text in enumerate(lines) if text.lstrip().startswith("FAIL "))]).split())
+    error = "NameError: name 'undefined_step' is not defined" if "STEP" in line else "SystemExit: 3"
+    assert f"{error} (raised while hwlib was imported at hwlib/finite_diff.py line {at + 1})" in first, lines
+    assert "sys.exit or os._exit" not in " ".join(lines)
+
+
 def test_an_interrupt_ends_the_graders_subprocess(monkeypatch):
     started = []
     real_popen = subprocess.Popen

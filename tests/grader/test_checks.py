@@ -591,18 +591,21 @@ def test_a_1_2_1_that_returns_a_list_is_named_where_the_students_1_3_2_fails_on_
                                                                                   tmp_path):
     """Issue 32.5: a right 1.2.1 that returns a list keeps its points, and its check says that the
     training code does arithmetic on the gradient; the preview runs the student's own 1.2.1 in 1.3.2's
-    check, where learning_rate * list fails: 1.3.2's check names 1.2.1 and keeps the grade's points."""
+    check and 1.3.3's training run, where learning_rate * list fails: their checks name 1.2.1 and keep
+    the grade's points."""
     body = natural_body(NATURAL / "1.2.1_returns_list.py")
-    kit = write_kit(layout, tmp_path / "kit", {"1.2.1": body})  # the reference's 1.3.2
-    graded = {entry["id"]: entry for entry in grader.grade(kit, todos=["1.2.1", "1.3.2"])["todos"]}
-    shown = {entry["id"]: entry for entry in preview(student_edition, kit, ["1.2.1", "1.3.2"], tmp_path / "p.json")["todos"]}
-    for todo in ("1.2.1", "1.3.2"):  # preview = grade: the points, whichever 1.2.1 ran
+    kit = write_kit(layout, tmp_path / "kit", {"1.2.1": body})  # the reference's 1.3.2 and LEARNING_RATE
+    todos = ["1.2.1", "1.3.2", "1.3.3"]
+    graded = {entry["id"]: entry for entry in grader.grade(kit, todos=todos)["todos"]}
+    shown = {entry["id"]: entry for entry in preview(student_edition, kit, todos, tmp_path / "p.json")["todos"]}
+    for todo in todos:  # preview = grade: the points, whichever 1.2.1 ran
         assert shown[todo]["auto_earned"] == graded[todo]["auto_earned"] == TODO_BY_ID[todo].auto, \
             (todo, check_lines(shown[todo]))
     assert "return an array (np.array(...))" in " ".join(check_lines(shown["1.2.1"])), check_lines(shown["1.2.1"])
-    assert shown["1.3.2"]["blamed_on"] == ["1.2.1"] and "blamed_on" not in graded["1.3.2"]
-    first = " ".join(check_lines(shown["1.3.2"])[0:2])
-    assert "probably caused by TODO 1.2.1, which returns a list" in first, check_lines(shown["1.3.2"])
+    for todo in ("1.3.2", "1.3.3"):
+        assert shown[todo]["blamed_on"] == ["1.2.1"] and "blamed_on" not in graded[todo]
+        first = " ".join(" ".join(check_lines(shown[todo])[0:2]).split())
+        assert "probably caused by TODO 1.2.1, which returns a list" in first, check_lines(shown[todo])
 
 
 @pytest.mark.parametrize("path", WRONG_FILES, ids=lambda path: path.stem)

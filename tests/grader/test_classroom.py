@@ -665,7 +665,7 @@ def test_a_class_of_big_answers_keeps_the_grader_under_600_mib(layout, tmp_path,
     on 2 jobs; its peak memory (VmHWM, the reference servers are processes of their own) stays low."""
     cheat = proof.parse_cheat(proof.CHEATS / "big_answers.txt")
     folder = tmp_path / "submissions"
-    for number in range(4):  # each with code of its own: no run is reused
+    for number in range(2):  # each with code of its own: no run is reused; two graded at once
         own = dict(cheat, bodies={todo: f"{body}\n# big{number}" for todo, body in cheat["bodies"].items()})
         proof.build_cheat(layout, own, folder / f"big{number}", answer_key)
     code = ("import json, sys; from hwtools.grade import Grader; from hwtools.grade.instructor import classroom; "
@@ -677,5 +677,5 @@ def test_a_class_of_big_answers_keeps_the_grader_under_600_mib(layout, tmp_path,
     run = subprocess.run([sys.executable, "-c", code], cwd=KIT, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr
     statuses, peak_kib = json.loads(run.stdout.strip().splitlines()[-1])
-    assert len(statuses) == 4 and all(status in ("graded", "not isolated") for status in statuses), statuses
+    assert len(statuses) == 2 and all(status in ("graded", "not isolated") for status in statuses), statuses
     assert peak_kib < 600 * 1024, f"the grader peaked at {peak_kib / 1024:.0f} MiB"

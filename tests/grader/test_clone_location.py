@@ -1,6 +1,7 @@
 """CI passes wherever the clone lives: the user fallback's and Gradescope's cases, run from a copy of
-this kit inside a folder only root may enter (``mktemp -d``, mode 0700) and from one inside
-world-readable folders (``/tmp/X/b/kit``, parents 0755).
+this kit in the other kind of place than this clone's own (where the rest of the suite runs them):
+inside a folder only root may enter (``mktemp -d``, mode 0700) or inside world-readable folders
+(``/tmp/X/b/kit``, parents 0755).
 
 The first once failed every user-fallback case (the fallback's Python was a venv whose ``.pth``
 pointed into the clone's ``.venv``, which the pool's users could not reach); the second let the
@@ -44,14 +45,20 @@ def copy_of_the_kit(target):
     return target
 
 
-@pytest.fixture(params=["private", "world-readable"])
-def clone(request):
-    """``private``: /tmp/tmp.../kit in a 0700 folder; ``world-readable``: /tmp/tmp.../b/kit, parents 0755."""
+def world_readable(path):
+    """True if every user may enter ``path`` and each folder above it."""
+    return all(folder.stat().st_mode & 0o001 for folder in [path, *path.parents])
+
+
+@pytest.fixture()
+def clone():
+    """A copy in the other kind of place: ``private``, /tmp/tmp.../kit in a 0700 folder, where this
+    clone is world-readable; else ``world-readable``, /tmp/tmp.../b/kit, parents 0755."""
     if os.geteuid() != 0:
         pytest.skip("the user fallback needs the grader to run as root")
     top = Path(tempfile.mkdtemp())  # mode 0700, as mktemp -d makes it
     try:
-        if request.param == "private":
+        if world_readable(KIT):
             kit = top / "kit"
         else:
             top.chmod(0o755)

@@ -101,6 +101,9 @@ def numbers(value, what):
         raise TypeError(f"{what} returned something that is not an array of numbers ({error})") from None
 
 
+IMPORT_FAILED = "raised while hwlib was imported"  # in a case's error where the kit's code raised at import (runtime.py)
+
+
 def _import(name):
     module = importlib.import_module(name)
     kit = os.path.realpath(KIT_DIR)

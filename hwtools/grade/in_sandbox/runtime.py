@@ -30,13 +30,14 @@ import inspect
 import os
 import sys
 import time
+import traceback
 import warnings
 
 import numpy as np
 
 from . import channel, probes, served, served_env
 
-_IO = {"in": None, "out": None, "k": 0, "mode": None, "env_class": None}
+_IO = {"in": None, "out": None, "k": 0, "mode": None, "env_class": None, "import_error": ""}
 MAIN_PID = os.getpid()
 _CALLBACKS = []  # the functions passed to pending proxy calls, by id
 _LAST_CALLBACK_ERROR = [None]
@@ -69,6 +70,8 @@ def _broken():
 def run_case(message):
     started = time.perf_counter()
     result = {"op": "result", "re": message.get("n"), "status": "ok", "error": "", "warnings": [], "values": {}}
+    if _IO["import_error"]:  # the kit raised while it was imported: each case says so, and nothing of it runs
+        return dict(result, status="error", error=_IO["import_error"], seconds=0.0)
     defaults = np.seterr()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -204,6 +207,14 @@ def _episode(arguments):
     return {"params": policy.params, "seed": arguments.get("seed"), "env": env}
 
 
+def _import_error(error):
+    """The words of an error the kit's code raised while imported, with the kit's file and line it came from."""
+    kit = os.path.realpath(probes.KIT_DIR) + os.sep
+    frames = [frame for frame in traceback.extract_tb(error.__traceback__) if os.path.realpath(frame.filename).startswith(kit)]
+    where = f" at {os.path.relpath(frames[-1].filename, kit)} line {frames[-1].lineno}" if frames else ""
+    return channel.text(f"{type(error).__name__}: {error} ({probes.IMPORT_FAILED}{where})")
+
+
 def _refusing(why, original):
     def stub(*args, **kwargs):
         raise NotImplementedError(why)
@@ -240,6 +251,9 @@ def _setup_worker(todo):
         probes._import("hwlib")
     except ImportError:
         pass
+    except BaseException as error:  # noqa: BLE001 - a NameError, sys.exit, ... in the kit's code at import
+        _IO["import_error"] = _import_error(error)
+        return
     allowed, refused = served.plan(todo) if todo else ({}, {})
     for name, entry in allowed.items():
         _replace(entry, lambda original, entry=entry: _proxy(entry, original))
