@@ -88,8 +88,9 @@ try:  # macOS and Linux; Windows has neither (its runs have no CPU or memory lim
 except ImportError:
     fcntl = resource = None
 try:  # the instructor's kit (the student edition has no sandbox: hwtools/grade/instructor/ is not in it)
-    from hwtools.grade.instructor.bwrap_sandbox import (bwrap_options, host_user_namespace, options_pipe, probe_isolation,
-                                                        readable_copy, sandbox_init, wait_gone)
+    from hwtools.grade.instructor.bwrap_sandbox import (bwrap_options, grader_makes_namespace, host_user_namespace,
+                                                        options_pipe, probe_isolation, readable_copy, sandbox_init,
+                                                        wait_gone)
 except ImportError:
     probe_isolation = None
 NO_SANDBOX_HERE = "the student edition has no sandbox (the preview runs the student's own code, unsandboxed)"
@@ -234,7 +235,7 @@ class Sandbox:
         cpu = max(1, int(time_limit + 0.999))
         options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}", "--core=0"]
         kind = kind or self.kind
-        if kind == "user" or kind == "bwrap" and os.geteuid() == 0:  # bwrap: in host_user_namespace's namespace
+        if kind == "user" or kind == "bwrap" and grader_makes_namespace():
             from hwtools.grade.instructor.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
 
             options.append(f"--nproc={MAX_PROCESSES}")

@@ -71,6 +71,12 @@ def _unshare_user():
         raise OSError(ctypes.get_errno(), "unshare(CLONE_NEWUSER) failed")
 
 
+def grader_makes_namespace():
+    """True for a root grader: it makes each run's user namespace (``host_user_namespace``), where
+    RLIMIT_NPROC counts the run's processes."""
+    return os.geteuid() == 0
+
+
 def host_user_namespace():
     """A root grader's: a descriptor of a new user namespace whose uid and gid 65534 are HOST_ID on
     the host and 65533 root's (None for any other grader). bubblewrap (``--userns``) makes the
@@ -79,7 +85,7 @@ def host_user_namespace():
     65533). Made by bwrap itself, the sandbox's uid would be root's on the host, which
     RLIMIT_NPROC never binds; as HOST_ID its processes are counted in this namespace alone, at
     most MAX_PROCESSES (``Sandbox.limits``)."""
-    if os.geteuid() != 0:
+    if not grader_makes_namespace():
         return None
     try:
         holder = subprocess.Popen(["/bin/sleep", "60"], preexec_fn=_unshare_user, env={}, close_fds=True,  # noqa: PLW1509
