@@ -42,7 +42,9 @@ TIME_LIMIT = 5.0  # per TODO's run: twice what the whole reference kit takes; th
 JOBS = 2
 HUGE = 200_000_000  # the 200 MB file: zeros, compressed to almost nothing, never written out
 AUTO_TODOS = [todo.id for todo in TODOS if todo.auto]
-# What each wrong solution keeps of its own TODO's points (every other TODO keeps all of its own).
+# Wrong solutions in the class (one or more for each TODO with automatic points) and what each keeps
+# of its own TODO's points; every other TODO keeps all of its own. Every wrong solution is graded
+# alone in test_checks.py and test_grading.py; the class shows a class run gives these the same cells.
 WRONG_KEPT = {"forward_difference": 0, "labels_not_one_vs_rest": 0, "learning_rate_too_large": 0,
               "logreg_gradient_descent": 0, "logreg_mean_gradient": 0, "one_vs_rest_inverted_labels": 0,
               "policy_gradient_descent": 1, "policy_mirror_image": 0, "predict_prob_without_bias": 0.5,
@@ -133,16 +135,12 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
         archive.writestr("__MACOSX/correct-zip/hwlib/._cartpole.py", b"\x00\x05\x16\x07 resource fork")
     made.expect("correct-zip", graded(grader), full())
 
-    # Each wrong solution, zipped one folder down: its own TODO loses, every other keeps its points.
-    for path in sorted(proof.WRONG.glob("*.txt")):
-        todo, _, bodies = proof.parse_wrong_solution(path)
-        kit = kits.write_submission(layout, scratch / "wrong" / path.stem / "hw1", {todo: bodies}, others="reference")
-        zip_folder(kit.parent, folder / f"wrong-{path.stem}.zip")
-        kept = WRONG_KEPT.get(path.stem)
-        if kept is None:  # a wrong solution added since: what grading it alone gives, which must lose points
-            kept = proof.points(grader.grade(kit))[todo]
-            assert kept < TODO_BY_ID[todo].auto, path.name
-        made.expect(f"wrong-{path.stem}", graded(grader), full() | {todo: kept})
+    # Wrong solutions, zipped one folder down: its own TODO loses, every other keeps its points.
+    for name, kept in WRONG_KEPT.items():
+        todo, _, bodies = proof.parse_wrong_solution(proof.WRONG / f"{name}.txt")
+        kit = kits.write_submission(layout, scratch / "wrong" / name / "hw1", {todo: bodies}, others="reference")
+        zip_folder(kit.parent, folder / f"wrong-{name}.zip")
+        made.expect(f"wrong-{name}", graded(grader), full() | {todo: kept})
 
     # Each cheat, as a folder (one of them holds a link).
     for path in proof.CHEAT_FILES:
