@@ -258,10 +258,12 @@ def natural_solutions():
 
 @pytest.mark.parametrize("path", natural_solutions(), ids=lambda path: path.stem)
 def test_natural_solution_earns_every_point(grader, layout, tmp_path, path):
+    """Graded on its own TODO: every other TODO of the kit is the reference's (graded in full once:
+    test_instructor_kit_earns_every_point), and no TODO's grade runs another's student code."""
     todo = path.name.split("_")[0]
     kits.write_submission(layout, tmp_path, {todo: path.read_text(encoding="utf-8")}, others="reference")
-    result = grader.grade(tmp_path)
-    assert points(result) == full_points(), render(result)
+    result = grader.grade(tmp_path, todos=[todo])
+    assert points(result) == {t: full for t, full in full_points().items() if t == todo}, render(result)
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
     assert all(check["passed"] for check in entry["checks"]), render(result)
     assert not any(other.get("mistake") for other in result["todos"])  # no correct solution is named a mistake
