@@ -572,6 +572,22 @@ def test_with_a_reference_and_no_sandbox_no_student_code_runs(monkeypatch, tmp_p
         user_sandbox.probe.cache_clear()
 
 
+def test_the_reference_is_tried_as_each_pool_user_while_no_run_holds_that_user(user_python, monkeypatch):
+    """The try runs as a pool user: a run of that user (another grading process's, beside it) could
+    kill it (its end kills every process of the user), which counted the reference as readable and
+    refused to grade (a CI run beside another), or answer for it. Each try holds its user first."""
+    held, plain = [], user_sandbox.as_user
+
+    def as_user(uid, gid, argv, timeout=None):
+        name = next(entry.pw_name for entry in user_sandbox.users() if entry.pw_uid == uid)
+        held.append(name in user_sandbox._HELD)
+        return plain(uid, gid, argv, timeout)
+
+    monkeypatch.setattr(user_sandbox, "as_user", as_user)
+    user_sandbox.readable_by_pool([KIT / "instructor" / "hidden_checks" / "__init__.py"])
+    assert held and all(held), held
+
+
 def test_the_user_fallback_refuses_to_grade_while_a_pool_user_can_read_the_reference(user_python, tmp_path):
     """Checked as each pool user: a reference kit in a world-readable folder is refused, with the fix;
     the same kit behind a folder only root may enter is taken."""

@@ -488,11 +488,17 @@ _OPENABLE = ("import os, sys\n"
 
 
 def readable_by_pool(paths, timeout=60.0):
-    """The ``paths`` that a user of the pool can open for reading, tried as each of them (``as_user``).
-    A try that does not finish in ``timeout`` seconds counts every path as readable (fail closed)."""
+    """The ``paths`` that a user of the pool can open for reading, tried as each of them (``as_user``),
+    each while holding that user (``_Slot``): no run of the user, in this grading process or another,
+    can stop, kill or answer for the try. A try that fails or does not finish in ``timeout`` seconds
+    counts every path as readable (fail closed)."""
     paths, found = [str(path) for path in paths], set()
     for entry in users():
-        code, output = as_user(entry.pw_uid, entry.pw_gid, [SYSTEM_PYTHON, "-I", "-c", _OPENABLE, *paths], timeout)
+        slot = _Slot(user=entry)
+        try:
+            code, output = as_user(entry.pw_uid, entry.pw_gid, [SYSTEM_PYTHON, "-I", "-c", _OPENABLE, *paths], timeout)
+        finally:
+            slot.release()
         if code != 0:
             return sorted(paths)
         found |= {paths[int(number)] for number in output.split() if number.isdigit() and int(number) < len(paths)}
