@@ -225,10 +225,10 @@ def _may_enter(info, uid, gid):
     return bool(info.st_mode & (stat.S_IXGRP if info.st_gid == gid else stat.S_IXOTH))
 
 
-def _owned_files(uid, gid, places=SHARED_PLACES):
-    """Every path in ``places`` that ``uid`` owns (a folder of its own stands for all it holds),
-    searched wherever that user may enter (it can have written nowhere else there)."""
-    found, pending = [], [place for place in places if os.path.isdir(place)]
+def _entries(places, enter):
+    """(path, lstat result) of every entry in the folders ``places`` and, below them, in every
+    folder for which ``enter(info)`` is true; folders that cannot be read are passed over."""
+    pending = [place for place in places if os.path.isdir(place)]
     while pending:
         try:
             entries = list(os.scandir(pending.pop()))
@@ -239,33 +239,30 @@ def _owned_files(uid, gid, places=SHARED_PLACES):
                 info = entry.stat(follow_symlinks=False)
             except OSError:
                 continue
-            if info.st_uid == uid:
-                found.append(entry.path)
-            elif stat.S_ISDIR(info.st_mode) and _may_enter(info, uid, gid):
+            if enter(info):
                 pending.append(entry.path)
-    return found
+            else:
+                yield entry.path, info
+
+
+def _owned_files(uid, gid, places=SHARED_PLACES):
+    """Every path in ``places`` that ``uid`` owns (a folder of its own stands for all it holds),
+    searched wherever that user may enter (it can have written nowhere else there)."""
+    def enter(info):
+        return info.st_uid != uid and stat.S_ISDIR(info.st_mode) and _may_enter(info, uid, gid)
+
+    return [path for path, info in _entries(places, enter) if info.st_uid == uid]
 
 
 def disk_used(uid, gid, places):
     """The bytes that regular files of ``uid`` hold in ``places``, each file once, searched in every
     folder there that user may write to (it can have made files nowhere else), with the files its
     processes deleted but still hold open or mapped."""
-    paths, pending, seen, total = [], [place for place in places if os.path.isdir(place)], set(), 0
-    while pending:
-        try:
-            entries = list(os.scandir(pending.pop()))
-        except OSError:
-            continue
-        for entry in entries:
-            try:
-                info = entry.stat(follow_symlinks=False)
-            except OSError:
-                continue
-            if stat.S_ISDIR(info.st_mode) and (info.st_uid == uid or info.st_mode & (
-                    stat.S_IWGRP if info.st_gid == gid else stat.S_IWOTH)):
-                pending.append(entry.path)
-            elif info.st_uid == uid:
-                paths.append(entry.path)
+    def enter(info):
+        return stat.S_ISDIR(info.st_mode) and (info.st_uid == uid or info.st_mode & (
+            stat.S_IWGRP if info.st_gid == gid else stat.S_IWOTH))
+
+    paths, seen, total = [path for path, info in _entries(places, enter) if info.st_uid == uid], set(), 0
     for pid in processes_of(uid):
         for table in ("fd", "map_files"):
             try:
