@@ -6,8 +6,10 @@ not run), and each ``results.json`` is checked against a schema written from
 
 Two containers (``containers.py``): this machine, where bubblewrap works, and Docker's, where a
 ``bwrap`` that fails as Docker's seccomp profile makes it fail comes first on PATH, so that the
-grader falls back to a user of its own per run (``tests/grader/cheats/gradescope/``: the attacks that
-got through the old fallback fail there: the results.json overwrite, /tmp kit borrowing, root).
+grader falls back to a user of its own per run. A correct submission is graded in both; the attacks
+that got through the old fallback (``tests/grader/cheats/gradescope/``: the results.json overwrite, /tmp
+kit borrowing, a relay through /tmp, root) run in Docker's, where they did (test_grading's cheats
+attack bubblewrap's sandbox).
 """
 
 from __future__ import annotations
@@ -267,7 +269,7 @@ def answer_key(tmp_path_factory):
 
 
 def test_a_child_that_rewrites_results_json_after_the_grader_does_not_change_the_score(bundle, layout, tmp_path,
-                                                                                      container, answer_key):
+                                                                                      docker, answer_key):
     submission, cheat = attack("results_overwrite", layout, answer_key)
     marker = Path("/tmp/hwgrade-overwrite-" + hashlib.sha256(str(tmp_path / "autograder").encode()).hexdigest()[:12])
     seen, stop = [], threading.Event()
@@ -281,35 +283,33 @@ def test_a_child_that_rewrites_results_json_after_the_grader_does_not_change_the
     watcher = threading.Thread(target=watch, daemon=True)
     watcher.start()
     try:
-        data, _ = autograde(bundle, tmp_path, submission, container)
+        data, _ = autograde(bundle, tmp_path, submission, docker)
         stop.set()
         watcher.join(timeout=10)
         assert data["score"] == cheat["points"] == 0
-        if container:  # without namespaces the attack ran: it found the root and wrote its marker in /tmp
-            assert seen, "the attack did not run"
-            assert not marker.exists(), "a file the run left in /tmp outlived it"
+        assert seen, "the attack did not run"  # without namespaces it finds the root and writes its marker in /tmp
+        assert not marker.exists(), "a file the run left in /tmp outlived it"
         time.sleep(1.5)  # the forged writes came every 0.05 s while the child lived
         assert json.loads((tmp_path / "autograder" / "results" / "results.json").read_text()) == data
         assert not live_processes(lambda cmdline: cmdline.startswith(b"sh\0-c\0end=")), "the child outlived grading"
     finally:
         marker.unlink(missing_ok=True)
-    if container:  # nothing under the root that runs later is writable by the sandbox's users
-        root = tmp_path / "autograder"
-        assert (root / "source").stat().st_mode & 0o777 == 0o700
-        assert (root / "results").stat().st_uid == 0 and not (root / "results").stat().st_mode & 0o022
-        for path in [root / "run_autograder", *(root / "source").rglob("*")]:
-            assert path.is_symlink() or not path.lstat().st_mode & 0o022, path
+    root = tmp_path / "autograder"  # nothing under the root that runs later is writable by the sandbox's users
+    assert (root / "source").stat().st_mode & 0o777 == 0o700
+    assert (root / "results").stat().st_uid == 0 and not (root / "results").stat().st_mode & 0o022
+    for path in [root / "run_autograder", *(root / "source").rglob("*")]:
+        assert path.is_symlink() or not path.lstat().st_mode & 0o022, path
 
 
-def test_a_submission_cannot_borrow_the_reference_from_another_run_s_kit(bundle, layout, tmp_path, container,
+def test_a_submission_cannot_borrow_the_reference_from_another_run_s_kit(bundle, layout, tmp_path, docker,
                                                                         answer_key):
     submission, cheat = attack("tmp_borrowing", layout, answer_key)
     cheat["bodies"]["1.2.1"] = cheat["bodies"]["1.2.1"].replace("THIS_CLONE", str(layout.root))
-    data, _ = autograde(bundle, tmp_path, submission, container)
+    data, _ = autograde(bundle, tmp_path, submission, docker)
     assert points_tests(data)["1.2.1"]["score"] == 0 and data["score"] == cheat["points"] == 0
 
 
-def test_nothing_a_run_leaves_in_a_shared_place_reaches_a_later_run(bundle, layout, tmp_path, container, answer_key):
+def test_nothing_a_run_leaves_in_a_shared_place_reaches_a_later_run(bundle, layout, tmp_path, docker, answer_key):
     """2.2.1's run leaves its inputs (hidden ones too) in world-readable files in /tmp and /dev/shm;
     2.2.2's run, later, finds nothing to show in its feedback: every file a run's user leaves in a
     shared place is removed when the run ends."""
@@ -317,7 +317,7 @@ def test_nothing_a_run_leaves_in_a_shared_place_reaches_a_later_run(bundle, layo
     for place in ("/tmp", "/dev/shm"):
         Path(place, "hwgrade-relay").unlink(missing_ok=True)
     try:
-        data, _ = autograde(bundle, tmp_path, submission, container)
+        data, _ = autograde(bundle, tmp_path, submission, docker)
     finally:
         left = [place for place in ("/tmp", "/dev/shm") if Path(place, "hwgrade-relay").exists()]
         for place in left:
@@ -326,9 +326,9 @@ def test_nothing_a_run_leaves_in_a_shared_place_reaches_a_later_run(bundle, layo
     assert data["score"] == cheat["points"] == 39 and not left
 
 
-def test_student_code_never_runs_as_root(bundle, layout, tmp_path, container, answer_key):
+def test_student_code_never_runs_as_root(bundle, layout, tmp_path, docker, answer_key):
     submission, cheat = attack("runs_as_root", layout, answer_key)
-    data, _ = autograde(bundle, tmp_path, submission, container)
+    data, _ = autograde(bundle, tmp_path, submission, docker)
     assert points_tests(data)["2.2.1"]["score"] == 0 and data["score"] == cheat["points"] == 37
 
 

@@ -264,18 +264,23 @@ def grade_cli(kit, out, cwd=KIT):
     return json.loads(out.read_text()), result.stdout
 
 
-@pytest.mark.parametrize("how", ["crlf", "cr", "bom", "tabs-trailing"])
-def test_the_kit_saved_with_other_line_ends_scores_every_point(how, tmp_path):
-    kit = saved_copy(KIT, tmp_path / "kit", how)
-    sample = (kit / "hwlib" / "finite_diff.py").read_bytes()
-    assert {"crlf": b"\r\n" in sample, "cr": b"\r" in sample and b"\n" not in sample,
-            "bom": sample.startswith(b"\xef\xbb\xbf"), "tabs-trailing": b"\n\t" in sample}[how]
+# Each way an editor saves a file, on a file with TODOs: one kit, one grade (the kit's other files LF).
+SAVED_EACH_ITS_WAY = {"hwlib/cartpole.py": "cr", "hwlib/finite_diff.py": "crlf", "hwlib/policy_search.py": "bom",
+                      "hwlib/settings.py": "bom-crlf", "hwlib/logreg.py": "tabs-trailing"}
+
+
+def test_a_kit_whose_files_are_saved_each_its_own_way_scores_every_point(tmp_path):
+    kit = saved_copy(KIT, tmp_path / "kit", "lf")
+    for name, how in SAVED_EACH_ITS_WAY.items():
+        (kit / name).write_bytes(saved((KIT / name).read_text(encoding="utf-8"), how))
+    assert {how for how in SAVED_EACH_ITS_WAY.values()} == set(SAVED) - {"lf"}
     result, stdout = grade_cli(kit, tmp_path / "result.json")
     earned = {entry["id"]: entry["auto_earned"] for entry in result["todos"] if entry["auto_possible"]}
     assert earned == {todo: TODO_BY_ID[todo].auto for todo in AUTO_TODOS}, stdout
     assert result["total"]["auto_earned"] == AUTO_POINTS
-    if how != "tabs-trailing":  # re-indenting the whole file with tabs does change lines outside the blocks
-        assert not any("differ from the kit's" in note for note in result["notes"]), result["notes"]
+    # re-indenting a whole file with tabs does change its lines outside the blocks; nothing else differs
+    differ = [note for note in result["notes"] if "differ from the kit's" in note]
+    assert [note.split(":")[0] for note in differ] == ["hwlib/logreg.py"], result["notes"]
 
 
 def test_the_student_preview_gives_a_crlf_copy_the_verdicts_of_the_lf_one(tmp_path, tmp_path_factory):

@@ -17,6 +17,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
+import editions
 from doc_mentions import Kit, missing
 from instructor.release import (
     ANSWER_KEY,
@@ -42,9 +43,8 @@ MARKER = re.compile(r"(BEGIN|END) SOLUTION|### HINT:|### STUB:")
 
 @pytest.fixture(scope="module")
 def edition(tmp_path_factory):
-    out = tmp_path_factory.mktemp("edition") / "student"
-    build_student_edition(REPO, out)
-    return out
+    """The student edition, with the test run's answer key (written once per test process)."""
+    return editions.build(tmp_path_factory.mktemp("edition") / "student", tmp_path_factory)
 
 
 def _tree(root):
@@ -66,7 +66,7 @@ def _source_blocks(path):
 
 
 def test_building_twice_gives_byte_identical_output(edition, tmp_path):
-    build_student_edition(REPO, tmp_path / "again")  # the answer key included
+    build_student_edition(REPO, tmp_path / "again")  # the release command's own way, its answer key included
     assert _tree(tmp_path / "again") == _tree(edition)
 
 
