@@ -4,7 +4,8 @@ helpers that drive a notebook in it like a student (open, Run All, read errors, 
 (Named so as not to shadow the ``jupyter_server`` and ``jupyterlab_server`` packages.)
 
 ``running_jupyterlab(root_dir, tmp_dir)`` starts JupyterLab from the test's own Python
-environment (``sys.executable -m jupyter lab``) on a free port of 127.0.0.1 with a random token,
+environment (``sys.executable -m jupyter lab``; with ``app="notebook"``, Notebook 7, and with
+``prefix``, under a base URL as on a JupyterHub) on a free port of 127.0.0.1 with a random token,
 with its config, runtime, settings and workspace folders inside ``tmp_dir`` so nothing leaks
 between runs, waits until it answers, and on the way out, however the ``with`` block ends,
 shuts down its kernels, stops the server (SIGTERM, then SIGKILL after a timeout), kills any of
@@ -66,13 +67,18 @@ class JupyterLab:
     token: str
     root_dir: Path
     log_path: Path
+    app: str = "lab"
+    prefix: str = "/"
 
     @property
     def base_url(self):
-        return f"http://127.0.0.1:{self.port}"
+        return f"http://127.0.0.1:{self.port}{self.prefix.rstrip('/')}"
 
     def url(self, path):
-        """The browser URL of ``path`` (relative to the root dir) in a fresh JupyterLab workspace."""
+        """The browser URL of notebook ``path`` (relative to the root dir): in a fresh JupyterLab
+        workspace, or Notebook 7's page for it."""
+        if self.app == "notebook":
+            return f"{self.base_url}/notebooks/{Path(path).as_posix()}?token={self.token}"
         return f"{self.base_url}/lab/tree/{Path(path).as_posix()}?reset&token={self.token}"
 
     def api(self, method, path):
@@ -167,8 +173,8 @@ def _stop(lab):
 
 
 @contextlib.contextmanager
-def running_jupyterlab(root_dir, tmp_dir):
-    """Start JupyterLab serving ``root_dir``; yield a ``JupyterLab``; always stop it."""
+def running_jupyterlab(root_dir, tmp_dir, app="lab", prefix="/"):
+    """Start JupyterLab (or ``app``) serving ``root_dir`` under ``prefix``; yield a ``JupyterLab``; always stop it."""
     root_dir, tmp_dir = Path(root_dir), Path(tmp_dir)
     dirs = {name: tmp_dir / name for name in ("config", "data", "runtime", "settings", "workspaces")}
     for path in dirs.values():
@@ -192,8 +198,9 @@ def running_jupyterlab(root_dir, tmp_dir):
     for name in ("JUPYTER_PATH", "MPLBACKEND"):
         env.pop(name, None)
     command = [
-        sys.executable, "-m", "jupyter", "lab",
+        sys.executable, "-m", "jupyter", app,
         "--no-browser",
+        f"--ServerApp.base_url={prefix}",
         "--ServerApp.ip=127.0.0.1",
         f"--ServerApp.port={port}",
         "--ServerApp.port_retries=0",
@@ -215,7 +222,7 @@ def running_jupyterlab(root_dir, tmp_dir):
             command, cwd=root_dir, env=env, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
             start_new_session=True,
         )
-    lab = JupyterLab(process, port, token, root_dir, log_path)
+    lab = JupyterLab(process, port, token, root_dir, log_path, app, prefix)
     try:
         _wait_until_answers(lab, time.monotonic() + STARTUP_TIMEOUT)
         yield lab

@@ -1,8 +1,11 @@
 """Day one in JupyterLab, as a student sees it (headless Chromium, 1280 x 720, file browser open).
 
 - **Quick start.** JupyterLab serves the kit's folder, as the README's command starts it: one
-  click on the file browser's root shows ``hwlib/`` beside ``notebooks/``, and one click on the
-  ``hwlib/cartpole.py`` link under the 1.1.1 heading opens that file in an editor tab.
+  click on the file browser's root shows ``hwlib/`` beside ``notebooks/``, and one click on a
+  TODO's link (1.1.1's, 1.3.2's) opens its file in an editor tab, scrolled to the TODO: its comment
+  and stub on screen, with the function's ``def`` line above them.
+- **Notebook 7**, under a JupyterHub's base URL: a TODO's "Notebook 7" link opens its file in
+  Notebook 7's editor (not the raw, read-only ``/files/`` page).
 - **The untouched student edition.** Run All stops at the first cell that needs a TODO; its
   output, on screen without scrolling, begins with "TODO 1.1.1 is not done yet". Then every
   code cell is run in turn (Shift+Enter, as a student steps through): each cell that needs a
@@ -21,6 +24,8 @@ from __future__ import annotations
 import contextlib
 import re
 import shutil
+import time
+import urllib.parse
 from pathlib import Path
 
 import pytest
@@ -40,17 +45,29 @@ NEEDS_NO_TODO = ("%matplotlib inline", "env = cartpole.make_env()", "### BEGIN T
 
 
 @pytest.fixture(scope="module")
-def day_one_lab(chromium, tmp_path_factory):
-    """JupyterLab on the untouched student edition, served from its root as the quick start does;
-    its kernels import that edition (PYTHONPATH, set only while the server starts)."""
+def day_one_kit(tmp_path_factory):
     from day_one import day_one_edition
 
-    kit = day_one_edition(tmp_path_factory.mktemp("day-one") / "kit", tmp_path_factory)
+    return day_one_edition(tmp_path_factory.mktemp("day-one") / "kit", tmp_path_factory)
+
+
+@pytest.fixture(scope="module")
+def day_one_lab(chromium, day_one_kit, tmp_path_factory):
+    """JupyterLab on the untouched student edition, served from its root as the quick start does;
+    its kernels import that edition (PYTHONPATH, set only while the server starts)."""
     with contextlib.ExitStack() as stack:
         with pytest.MonkeyPatch.context() as patch:
-            patch.setenv("PYTHONPATH", str(kit))
-            lab = stack.enter_context(running_jupyterlab(kit, tmp_path_factory.mktemp("lab-state")))
+            patch.setenv("PYTHONPATH", str(day_one_kit))
+            lab = stack.enter_context(running_jupyterlab(day_one_kit, tmp_path_factory.mktemp("lab-state")))
         yield lab
+
+
+@pytest.fixture(scope="module")
+def day_one_notebook7(chromium, day_one_kit, tmp_path_factory):
+    """Notebook 7 (``jupyter notebook``) on the untouched student edition, under a JupyterHub user's base URL."""
+    with running_jupyterlab(day_one_kit, tmp_path_factory.mktemp("notebook7-state"), app="notebook",
+                            prefix="/user/student/") as server:
+        yield server
 
 
 @pytest.fixture(scope="module")
@@ -133,6 +150,33 @@ def first_line_names_a_todo(cell):
 # --- the tests ---------------------------------------------------------------------------------
 
 
+# A TODO's link by the code its cell names, the file it opens and what must then be on screen in
+# the editor: the function's def line, the TODO's comment and its stub's last line.
+LINKS = [("CartPoleLinearPolicy.__call__", "cartpole.py", ("def __call__(", "# TODO 1.1.1:", 'raise TodoNotDone("1.1.1")')),
+         ("the loop of train_cartpole_policy", "policy_search.py",
+          ("def train_cartpole_policy(", "# TODO 1.3.2:", 'raise TodoNotDone("1.3.2")'))]
+
+EDITOR_LINES_ON_SCREEN_JS = """() => {
+    const editor = [...document.querySelectorAll('.jp-FileEditor')].find(element => element.offsetParent !== null);
+    if (!editor) return [];
+    const view = editor.querySelector('.cm-scroller').getBoundingClientRect();
+    return [...editor.querySelectorAll('.cm-line')].filter(line => {
+        const box = line.getBoundingClientRect();
+        return box.height > 0 && box.top >= view.top && box.bottom <= view.bottom;
+    }).map(line => line.textContent);
+}"""
+
+
+def editor_shows(page, wanted, timeout_s=10):
+    """The lines of the editor on screen (whole lines only), once each of ``wanted`` begins one (or at the timeout)."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        shown = page.evaluate(EDITOR_LINES_ON_SCREEN_JS)
+        if all(any(line.strip().startswith(text) for line in shown) for text in wanted) or time.monotonic() > deadline:
+            return shown
+        page.wait_for_timeout(200)
+
+
 def test_quick_start_serves_the_kit_so_hwlib_is_one_click_away(page, day_one_lab):
     with screenshot_on_failure(page, "dayone-quick-start"):
         open_notebook(page, day_one_lab, P1)
@@ -141,20 +185,43 @@ def test_quick_start_serves_the_kit_so_hwlib_is_one_click_away(page, day_one_lab
         listing = page.locator(".jp-DirListing-content .jp-DirListing-itemText")
         listing.filter(has_text=re.compile(r"^hwlib$")).first.wait_for()
         assert {"hwlib", "notebooks"} <= set(listing.all_inner_texts()), listing.all_inner_texts()
-        link = page.locator(".jp-NotebookPanel .jp-RenderedMarkdown a", has_text="hwlib/cartpole.py").first
-        link.scroll_into_view_if_needed()
-        link.click()
-        tab = page.locator(".lm-TabBar-tab .lm-TabBar-tabLabel", has_text=re.compile(r"^cartpole\.py$"))
-        tab.first.wait_for()
-        # The editor opens empty and fills once the file has loaded: wait for the TODO's line.
-        todo_line = page.locator(".jp-FileEditor .cm-line", has_text="# TODO 1.1.1:").first
-        todo_line.wait_for(timeout=10_000)
-        # The link's #line= fragment scrolled the editor to the TODO: its first line is on screen.
-        page.wait_for_function("""line => {
-            const scroller = line.closest('.cm-scroller').getBoundingClientRect(), box = line.getBoundingClientRect();
-            return box.height > 0 && box.top >= scroller.top && box.bottom <= scroller.bottom;
-        }""", arg=todo_line.element_handle(), timeout=10_000)
+        for code, file, wanted in LINKS:
+            page.locator(".lm-TabBar-tab .lm-TabBar-tabLabel", has_text=P1).first.click()  # back to the notebook
+            cell = page.locator(".jp-NotebookPanel .jp-RenderedMarkdown", has_text=code).first
+            link = cell.locator("a", has_text=f"hwlib/{file}").first
+            link.scroll_into_view_if_needed()
+            link.click()
+            tab = page.locator(".lm-TabBar-tab .lm-TabBar-tabLabel", has_text=re.compile(rf"^{re.escape(file)}$"))
+            tab.first.wait_for()
+            # The link's #line= fragment scrolled the editor to the TODO (once the file has loaded):
+            # its comment and stub on screen, and the function they are in above them.
+            shown = editor_shows(page, wanted)
+            missing = [text for text in wanted if not any(line.strip().startswith(text) for line in shown)]
+            assert not missing, f"{file}: {missing} not on screen; the editor shows {shown}"
     shut_kernels(day_one_lab)
+
+
+def test_notebook7_link_opens_the_todos_file_in_its_editor_under_a_hub_base_url(page, day_one_notebook7):
+    """Notebook 7 opens a link it handles as the raw file (/files/...); the TODO's second link it leaves to
+    the browser, which resolves it against the page, base URL and all, to Notebook 7's editor."""
+    with screenshot_on_failure(page, "dayone-notebook7"):
+        page.goto(day_one_notebook7.url(f"notebooks/{P1}"), timeout=TIMEOUT_MS)
+        cell = page.locator(".jp-RenderedMarkdown", has_text="CartPoleLinearPolicy.__call__").first
+        link = cell.locator("a", has_text=re.compile(r"^line \d+$")).first
+        link.wait_for(timeout=TIMEOUT_MS)
+        with page.context.expect_page() as opened:
+            link.click()
+        editor = opened.value
+        try:
+            editor.wait_for_load_state(timeout=TIMEOUT_MS)
+            assert urllib.parse.urlsplit(editor.url).path == "/user/student/notebooks/hwlib/cartpole.py", editor.url
+            content = editor.locator(".jp-FileEditor .cm-content").first
+            content.wait_for(timeout=TIMEOUT_MS)
+            editor.locator(".jp-FileEditor .cm-line", has_text='"""CartPole').first.wait_for(timeout=CELL_TIMEOUT_MS)
+            assert content.get_attribute("contenteditable") == "true", "the file opened read-only"
+        finally:
+            editor.close()
+    shut_kernels(day_one_notebook7)
 
 
 def test_day_one_run_all_stops_at_the_first_todo_and_says_which_on_screen(page, day_one_lab):

@@ -89,32 +89,40 @@ def student_edition_text(relative):
 
 
 def todo_link_line(todo, relative):
-    """The 0-based line JupyterLab's ``#line=`` fragment puts the cursor on: the first line inside
-    the TODO's block in the student edition (its hint)."""
+    """The 0-based line JupyterLab's ``#line=`` fragment puts the cursor on: the last line inside the
+    TODO's block in the student edition (the stub's line the student replaces). JupyterLab scrolls that
+    line just into view, at the editor's bottom edge, so the whole stub shows with the function above it."""
     lines = student_edition_text(relative).split("\n")
-    return 1 + next(index for index, line in enumerate(lines) if line.strip() == f"### BEGIN TODO {todo}")
+    return next(index for index, line in enumerate(lines) if line.strip() == f"### END TODO {todo}") - 1
+
+
+def todo_links(todo, relative):
+    """A TODO's two links to its code. The first opens the editor at the TODO in JupyterLab (``#line=``,
+    0-based) and the file in VS Code. Notebook 7 opens any link it handles as the raw, read-only file
+    (``/files/``), so the second names the line and is one Notebook 7 leaves to the browser: the ``%``
+    that ends its fragment is no valid URL escape, and a Jupyter front end does not handle such a link.
+    The browser then resolves it against the page (``.../notebooks/notebooks/p1_....ipynb``, under any
+    base URL) to Notebook 7's page for the file, its editor (at the top: Notebook 7 reads no line from
+    a URL); VS Code reads ``#L<line>`` (1-based)."""
+    line = todo_link_line(todo, relative)
+    return f"[`{relative}`](../{relative}#line={line}) (Notebook 7: [line {line + 1}](../{relative}#L{line + 1}%))"
 
 
 def test_every_todo_links_to_its_code_at_its_todo():
-    """Every library TODO's code is linked from the notebooks with a #line= fragment that lands on its
-    block (where the heading cell is the student's own answer, as 2.1.1's, the link sits just above),
-    and every such link lands on a TODO."""
+    """Every library TODO's code is linked from the notebooks with the two links of ``todo_links``
+    (where the heading cell is the student's own answer, as 2.1.1's, they sit just above), and every
+    link into hwlib with a fragment is one of them."""
     import json
 
     from hwlib.machinery.todos import TODO_BY_ID
 
-    want = {(entry.where[0], f"#line={todo_link_line(todo, entry.where[0])}"): todo
-            for todo, entry in TODO_BY_ID.items() if entry.where[0].endswith(".py")}
-    found = set()
-    for path in NOTEBOOKS:
-        cells = [cell for cell in json.loads(path.read_text(encoding="utf-8"))["cells"] if cell["cell_type"] == "markdown"]
-        for cell in cells:
-            for file, fragment in re.findall(r"\]\(\.\./(hwlib/[\w/]+\.py)(#line=\d+)?\)", "".join(cell["source"])):
-                if (file, fragment) in want:
-                    found.add((file, fragment))
-                else:
-                    assert not fragment and all(key[0] != file for key in want), \
-                        f"{path.name}: a link to {file}{fragment} that lands on no TODO; the TODOs there: " + \
-                        ", ".join(f"{todo} {key[1]}" for key, todo in want.items() if key[0] == file)
-    missing = {todo: key for key, todo in want.items() if key not in found}
-    assert not missing, f"TODOs whose code no notebook links at its line: {missing}"
+    want = {todo: todo_links(todo, entry.where[0]) for todo, entry in TODO_BY_ID.items() if entry.where[0].endswith(".py")}
+    text = "\n".join("".join(cell["source"]) for path in NOTEBOOKS
+                     for cell in json.loads(path.read_text(encoding="utf-8"))["cells"] if cell["cell_type"] == "markdown")
+    missing = {todo: links for todo, links in want.items() if links not in text}
+    assert not missing, f"TODOs whose code the notebooks do not link at its line: {missing}"
+    wanted = "".join(want.values())
+    for link in re.findall(r"\]\(\.\./hwlib/[^)]*#[^)]*\)", text):
+        assert link in wanted, f"a link {link} that lands on no TODO; the TODOs' links: {want}"
+    files = {entry.where[0] for entry in TODO_BY_ID.values()}
+    assert not files & set(re.findall(r"\]\(\.\./(hwlib/[\w/]+\.py)\)", text)), "a link to a TODO's file without its line"
