@@ -43,8 +43,9 @@ def day_one_edition(out, tmp_path_factory=None, **options):
 def kit_env(kit, python=None):
     """The environment in which the kit at ``kit`` (not this one) is what Python imports; with the
     ``python`` of ``student_python(..., foreign=True)``, its ``PATH`` has no bubblewrap, ``prlimit``
-    or Chromium."""
-    env = {**os.environ, "PYTHONPATH": str(kit), "MPLBACKEND": "Agg"}
+    or Chromium. The instructor's own pytest options (``PYTEST_ADDOPTS``) are not the student's."""
+    env = {key: value for key, value in os.environ.items() if key != "PYTEST_ADDOPTS"}
+    env |= {"PYTHONPATH": str(kit), "MPLBACKEND": "Agg"}
     if python is not None and (Path(python).parent.parent / FOREIGN_PROGRAMS).is_dir():
         env["PATH"] = os.pathsep.join((str(Path(python).parent), str(Path(python).parent.parent / FOREIGN_PROGRAMS)))
     return env

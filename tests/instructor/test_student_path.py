@@ -76,8 +76,8 @@ def fill(kit):
 
 
 def run(python, kit, *args, timeout):
-    env = {key: value for key, value in kit_env(kit, python).items() if key != "PYTEST_ADDOPTS"}
-    return subprocess.run([str(python), *args], cwd=kit, env=env, capture_output=True, text=True, timeout=timeout)
+    return subprocess.run([str(python), *args], cwd=kit, env=kit_env(kit, python), capture_output=True, text=True,
+                          timeout=timeout)
 
 
 @pytest.fixture(scope="module")
