@@ -33,8 +33,8 @@ runs that way.
 processes share: byte-range, OFD and flock locks on a file both bind read-only, inotify on it, the
 timing of a shared CPU or cache. So two runs that hold student code never overlap on this machine
 (``_UNTRUSTED_RUN``, whatever grader, grading process or submission they belong to: a thread lock
-in each process, and an ``flock`` on a file in the grading user's own cache, ``$XDG_CACHE_HOME/hwgrade/``
-(``~/.cache/hwgrade/`` by default), between processes, which the pool's users cannot reach and the kernel releases when a grader dies): a run may be *started* early
+in each process, and an ``flock`` on a file in the grading user's own ``~/.cache/hwgrade/`` between
+processes, which the pool's users cannot reach and the kernel releases when a grader dies): a run may be *started* early
 (its sandbox made, Python, numpy, gymnasium and the grader's own runtime imported: trusted code
 only) while another one executes, but it *begins* (``WorkerProcess.begin``, on the first message
 the grader sends, before any code of the kit is imported) only once the run before it has ended
@@ -120,8 +120,7 @@ class _OneRunAtATime:
         self._thread.acquire()
         try:
             if self._fd is None and fcntl is not None:
-                cache = os.environ.get("XDG_CACHE_HOME", "")
-                folder = (Path(cache) if os.path.isabs(cache) else Path.home() / ".cache") / "hwgrade"
+                folder = Path.home() / ".cache" / "hwgrade"
                 folder.mkdir(mode=0o700, parents=True, exist_ok=True)
                 self._fd = os.open(folder / "untrusted-run.lock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
             if self._fd is not None:
