@@ -167,13 +167,15 @@ EDITOR_LINES_ON_SCREEN_JS = """() => {
 }"""
 
 
-def editor_shows(page, wanted, timeout_s=10):
-    """The lines of the editor on screen (whole lines only), once each of ``wanted`` begins one (or at the timeout)."""
+def editor_lacks(page, wanted, timeout_s=10):
+    """(those of ``wanted`` that begin no line of the editor on screen, whole lines only; those lines),
+    once none is missing or at the timeout."""
     deadline = time.monotonic() + timeout_s
     while True:
         shown = page.evaluate(EDITOR_LINES_ON_SCREEN_JS)
-        if all(any(line.strip().startswith(text) for line in shown) for text in wanted) or time.monotonic() > deadline:
-            return shown
+        missing = [text for text in wanted if not any(line.strip().startswith(text) for line in shown)]
+        if not missing or time.monotonic() > deadline:
+            return missing, shown
         page.wait_for_timeout(200)
 
 
@@ -195,8 +197,7 @@ def test_quick_start_serves_the_kit_so_hwlib_is_one_click_away(page, day_one_lab
             tab.first.wait_for()
             # The link's #line= fragment scrolled the editor to the TODO (once the file has loaded):
             # its comment and stub on screen, and the function they are in above them.
-            shown = editor_shows(page, wanted)
-            missing = [text for text in wanted if not any(line.strip().startswith(text) for line in shown)]
+            missing, shown = editor_lacks(page, wanted)
             assert not missing, f"{file}: {missing} not on screen; the editor shows {shown}"
     shut_kernels(day_one_lab)
 
