@@ -3,15 +3,38 @@ failure reports that name the TODO (``hwtools/pytest_todo.py``)."""
 
 import os
 
+import pytest
+
 os.environ["MPLBACKEND"] = "Agg"
 
 pytest_plugins = ("hwtools.pytest_todo",)
 
+# The tests that run student code (graders, sandboxes, class runs). Their runs take turns machine-wide
+# (hwtools/grade/sandbox.py: never two at once), so with two test processes each waited for the
+# other's runs about a third of the time; under the README's test command (-n 2 --dist loadfile) one
+# process runs these files, starting with them, and the other everything else
+# (benchmarks/RESULTS.md, the test suite).
+RUN_STUDENT_CODE = "tests/grader/"
+
 
 def pytest_configure(config):
-    # The README's test command shares test files between two processes (pytest-xdist's
-    # --dist loadfile). By default xdist sends the files with the most tests first, which leaves the
-    # long files with few tests (a class run, a copy of the clone) to the end, run by one process
-    # while the other waits: keep the folder order instead (benchmarks/RESULTS.md, the test suite).
+    # xdist sends the files with the most tests first by default: keep the folder order instead.
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
+
+
+def pytest_collection_modifyitems(items):
+    items.sort(key=lambda item: not item.nodeid.startswith(RUN_STUDENT_CODE))  # stable: files stay in order
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling  # noqa: PLC0415 - only where xdist runs the tests
+
+    class StudentCodeFilesTogether(LoadFileScheduling):
+        def _split_scope(self, nodeid):
+            return RUN_STUDENT_CODE if nodeid.startswith(RUN_STUDENT_CODE) else super()._split_scope(nodeid)
+
+    return StudentCodeFilesTogether(config, log)

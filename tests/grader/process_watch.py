@@ -56,14 +56,15 @@ def descendants(table, root):
     return found
 
 
-def live_processes(matches, settle=3.0):
+def live_processes(matches, settle=3.0, before=frozenset()):
     """The pids of this run's live descendants (zombies excluded) whose command line
-    ``matches(cmdline bytes)``; processes that were just killed get up to ``settle`` seconds to go."""
+    ``matches(cmdline bytes)``, but those in ``before`` (alive before what is judged began);
+    processes that were just killed get up to ``settle`` seconds to go."""
     deadline = time.monotonic() + settle
     while True:
         reap_adopted_orphans()
         table = _table()
-        found = {pid for pid in descendants(table, os.getpid())
+        found = {pid for pid in descendants(table, os.getpid()) - before
                  if table[pid][1] != "Z" and matches(table[pid][2])}
         if not found or time.monotonic() > deadline:
             return found

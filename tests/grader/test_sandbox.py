@@ -295,11 +295,13 @@ def test_a_child_that_holds_the_error_stream_does_not_hold_the_grader(mode, requ
 CHILD_SECONDS = 300
 
 
-def worker_processes(kit, settle=3.0):
+def worker_processes(kit, settle=3.0, before=frozenset()):
     """Live processes running the worker, in the sandbox (/grader/worker.py) or on ``kit`` without
-    one; killed ones get up to ``settle`` seconds to go."""
+    one, but those in ``before``; killed ones get up to ``settle`` seconds to go. (Workers this test
+    process started earlier, a reference server of another test's grader, may still be alive: a test
+    judges only the workers its own run started.)"""
     return live_processes(lambda cmdline: b"/grader/worker.py" in cmdline or
-                          (b"worker.py" in cmdline and str(kit).encode() in cmdline), settle)
+                          (b"worker.py" in cmdline and str(kit).encode() in cmdline), settle, before)
 
 
 @pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
@@ -316,9 +318,9 @@ def test_a_fork_does_not_outlive_the_run(mode, request, tmp_path):
         values = np.array([1.0])
     """))
     assert SUBREAPER, "the scan sees orphans only when this process reaps them"
-    assert not worker_processes(kit, settle=0)
+    before = worker_processes(kit, settle=0)
     assert values(run(kit, box)).tolist() == [1.0]
-    assert not worker_processes(kit), "a process started by the student's code outlived the run"
+    assert not worker_processes(kit, before=before), "a process started by the student's code outlived the run"
 
 
 @pytest.mark.parametrize("mode", ["isolated", "user"])
@@ -672,13 +674,13 @@ def test_a_sweeper_that_stops_every_process_of_its_user_cannot_hold_the_grader(u
         time.sleep(0.3)
         values = np.array([1.0])
     """))
-    done = []
+    done, before = [], worker_processes(kit, settle=0)
     thread = threading.Thread(target=lambda: done.append(run(kit, user)), daemon=True)
     thread.start()
     thread.join(timeout=240)
     assert done, "the grader was held by a stopped process"
     assert values(done[0]).tolist() == [1.0]
-    assert not worker_processes(kit), "the sweeper outlived the run"
+    assert not worker_processes(kit, before=before), "the sweeper outlived the run"
     nxt = make_kit(tmp_path / "next", "values = np.array([2.0])")
     assert values(run(nxt, user)).tolist() == [2.0]
 
