@@ -2,8 +2,8 @@
 can grade it (page numbers, a name line, the 2.1.1 derivation typeset, figures that fill the page and say what
 they show, pages that read offline).
 
-The first part needs no notebook run. The second runs the command once (module fixture, about a minute: it
-executes both notebooks) and reads what it wrote: the PDF through poppler's ``pdftotext`` and ``pdftoppm``.
+The first part needs no notebook run. The second runs the command once, in a student edition (module fixture,
+about a minute: it executes both notebooks) and reads what it wrote: the PDF through poppler's ``pdftotext`` and ``pdftoppm``.
 """
 
 from __future__ import annotations
@@ -338,10 +338,20 @@ def test_without_pandoc_the_derivation_is_kept_as_the_markdown_written(monkeypat
 
 @pytest.fixture(scope="module")
 def report_run(tmp_path_factory):
-    """Run the command as a student would, from another folder, into a folder that does not exist yet."""
+    """Run the command as a student would (the hand-in runs it too: ``hwtools.handin.build_report``): in a
+    student edition whose every TODO is done, with a Python like a student's, from another folder, into a
+    folder that does not exist yet."""
+    import editions
+    from day_one import kit_env, student_python
+
+    from hwtools.todos import TODO_BY_ID
+
+    edition = editions.build(tmp_path_factory.mktemp("edition") / "kit", tmp_path_factory, keep=frozenset(TODO_BY_ID))
+    python = student_python(tmp_path_factory.mktemp("venv") / "venv")
     out_dir = tmp_path_factory.mktemp("report") / "homework1-report"
-    command = [sys.executable, "-m", "hwtools.report", str(out_dir), "--name", STUDENT_NAME]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=REPORT_TIMEOUT, cwd=tmp_path_factory.getbasetemp())
+    command = [str(python), "-m", "hwtools.report", str(out_dir), "--name", STUDENT_NAME]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=REPORT_TIMEOUT, env=kit_env(edition, python),
+                          cwd=tmp_path_factory.getbasetemp())
     assert done.returncode == 0, f"the report failed:\n{done.stdout}\n{done.stderr}"
     return out_dir, done.stdout
 
