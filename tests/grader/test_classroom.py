@@ -1,7 +1,8 @@
 """Grading a class: a generated folder of 30 submissions (correct ones, each wrong solution, each
-cheat but the two that wait longest, an empty one, a zip with ../ paths, a zip with a 200 MB file, a damaged zip, one that never
-ends) graded in one run on 2 jobs; every gradebook cell is the expected one; a rerun writes the
-same bytes and grades nothing; a killed run resumes; and the reader refuses what it must.
+cheat but the two that wait longest, an empty one, a zip with ../ paths, a zip with a 200 MB file, a
+damaged zip, one that never ends) graded in one run on 2 jobs; every gradebook cell is the expected
+one; a rerun writes the same bytes and grades nothing; a killed run resumes; and the reader refuses
+what it must.
 
 One ``Grader`` serves the module (as it serves a class): the reference's answers are computed once.
 """

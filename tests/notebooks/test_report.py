@@ -3,7 +3,8 @@ can grade it (page numbers, a name line, the 2.1.1 derivation typeset, figures t
 they show, pages that read offline).
 
 The first part needs no notebook run. The second runs the command once, in a student edition (module fixture,
-about a minute: it executes both notebooks) and reads what it wrote: the PDF through poppler's ``pdftotext`` and ``pdftoppm``.
+about a minute: it executes both notebooks) and reads what it wrote: the PDF through poppler's ``pdftotext``
+and ``pdftoppm``.
 """
 
 from __future__ import annotations
