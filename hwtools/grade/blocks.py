@@ -7,16 +7,20 @@ around it (signatures, door checks, the ``return`` after the block) comes from t
 
 ``load_layout`` reads a kit's ``hwlib/`` (the reference's: its files and blocks, ``KitLayout``);
 ``read_submission`` takes each TODO's code from a submission's files, by that layout;
-``check_body`` says whether a block stands alone. The kits built from them: ``kits.py``.
+``check_in_place`` says whether a block parses in its place in its file, without swallowing the
+kit's code after it. The kits built from them: ``kits.py``.
 Standard library only: the grader's trusted process imports this module, never ``hwlib``.
 """
 
 from __future__ import annotations
 
 import ast
+import io
 import os
+import re
 import stat
 import threading
+import tokenize
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
@@ -77,11 +81,13 @@ def read_text(root, relative):
 
 @dataclass
 class Submission:
-    """The student's code per TODO (``bodies[todo]``: one tuple of lines per block) and what was
-    seen while reading it (``problems[todo]``: why a TODO's code could not be taken)."""
+    """The student's code per TODO (``bodies[todo]``: one tuple of lines per block; ``places[todo]``:
+    the file they were read from and the index of each block's BEGIN line in it) and what was seen
+    while reading it (``problems[todo]``: why a TODO's code could not be taken)."""
 
     root: Path
     bodies: dict = field(default_factory=dict)
+    places: dict = field(default_factory=dict)
     problems: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
     texts: dict = field(default_factory=dict)  # relative path -> text, of the files read
@@ -113,13 +119,14 @@ def read_submission(root, layout):
         submission.texts[relative] = text
         for todo in dict.fromkeys(todos):
             expected = sum(block.todo == todo for block in ref_blocks)
-            found = [block.body for block in blocks if block.todo == todo]
+            found = [block for block in blocks if block.todo == todo]
             if len(found) != expected:
                 submission.problems[todo] = (f"{relative}: expected {expected} block(s) marked "
                                              f"'### BEGIN TODO {todo}' ... '### END TODO {todo}', found {len(found)}"
                                              + _near_misses(text, todo))
             else:
-                submission.bodies[todo] = tuple(found)
+                submission.bodies[todo] = tuple(block.body for block in found)
+                submission.places[todo] = (relative, tuple(block.begin for block in found))
     changed = []
     for relative, reference_text in layout.files.items():
         try:
@@ -250,14 +257,87 @@ def parse(source):
         return ast.parse(source)
 
 
-def check_body(body, module_level):
-    """None if ``body`` is a well-formed block on its own (balanced brackets and strings, valid
-    syntax), else the reason. A block must stand alone so that it cannot swallow the kit's code."""
-    lines = reindent(body, "" if module_level else "    ")
-    source = "\n".join(lines) if module_level else "def _block():\n" + "\n".join(lines + ["    pass"])
+def check_in_place(text, spans, where):
+    """None if ``text`` (a whole file, its TODO blocks in place) parses as Python compiles it and no
+    block in it opens what it does not close, else the reason in words. ``spans``: the lines (1-based,
+    inclusive) of the blocks to judge in ``text``; ``where(index, line)`` names line ``line`` of block
+    ``index`` for the student (its file's line). A block is judged in its place: a ``break`` in a loop
+    around it, a ``return`` or ``yield`` in its function, a ``nonlocal`` of the function around it are
+    valid, as they are when the file runs; a bracket, string or line continuation that the block opens
+    and leaves open would take in the kit's code after it, and is named by the block line that opens it."""
+    swallowed = _swallows(text, spans)
+    if swallowed:
+        index, line, what = swallowed
+        return f"{where(index, line)} opens {what} that the block never closes: it would take in the kit's code after the block"
     try:
-        compile(source, "<your block>", "exec", dont_inherit=True)
+        with _PARSING:
+            compile(text, "<your file>", "exec", dont_inherit=True)
     except SyntaxError as error:
-        line = (error.lineno or 1) - (0 if module_level else 1)
-        return f"line {max(line, 1)} of the block: {error.msg}"
+        line = error.lineno or 1
+        inside = [(index, first, last) for index, (first, last) in enumerate(spans) if first <= line <= last]
+        if inside:
+            index, first, last = inside[0]
+        else:  # reported on the kit's line after a block: it is that block's doing (an "if x:" with no body)
+            before = [(index, first, last) for index, (first, last) in enumerate(spans) if last < line]
+            index, first, last = before[-1] if before else (0, *spans[0])
+            line = last
+        def named(match):  # "after 'if' statement on line N": N of the composed file, said as the student's
+            number = int(match[1])
+            block = next((i for i, (a, b) in enumerate(spans) if a <= number <= b), None)
+            return "" if block is None else f" on line {number - spans[block][0] + 1} of your block"
+
+        return f"{where(index, line - first + 1)}: " + _ON_LINE.sub(named, error.msg)
+    return None
+
+
+_ON_LINE = re.compile(r" on line (\d+)")
+_OPEN, _CLOSE = "([{", ")]}"
+_NOT_CODE = (tokenize.NEWLINE, tokenize.NL, tokenize.COMMENT, tokenize.INDENT, tokenize.DEDENT, tokenize.ENDMARKER)
+
+
+def _swallows(text, spans):
+    """(block index, block line, what) of the first string, bracket or backslash continuation a block of
+    ``spans`` opens and leaves open past its last line, or None. Read from the whole file's tokens, the
+    same way on every Python: a token (a string) that begins in a block and ends after it, or a statement
+    begun in a block that goes on past its last line."""
+    def block_of(line):
+        return next(((index, first) for index, (first, last) in enumerate(spans) if first <= line <= last), None)
+
+    def left_open(statement, opened):  # a statement begun at line ``statement`` of a block goes on after it
+        inside = block_of(statement)
+        mine = [line for line, _ in opened if block_of(line) == inside]
+        if mine:
+            bracket = next(kind for line, kind in opened if line == mine[0])
+            return inside[0], mine[0] - inside[1] + 1, f"a bracket {bracket!r}"
+        return inside[0], last_code - inside[1] + 1, "a line continuation (a backslash at its end)"
+
+    opened, statement, last_code = [], None, None  # open brackets (line, kind); this statement's first line
+    try:
+        for token in tokenize.generate_tokens(io.StringIO(text).readline):
+            start, end = token.start[0], token.end[0]
+            inside = block_of(start)
+            if inside is not None and end > spans[inside[0]][1]:
+                return inside[0], start - inside[1] + 1, "a string"
+            if token.type == tokenize.NEWLINE:
+                opened, statement = [], None
+                continue
+            if token.type in _NOT_CODE:
+                continue
+            if statement is not None and block_of(statement) is not None and start > spans[block_of(statement)[0]][1]:
+                return left_open(statement, opened)
+            statement = start if statement is None else statement
+            last_code = start
+            if token.type == tokenize.OP and token.string in _OPEN:
+                opened.append((start, token.string))
+            elif token.type == tokenize.OP and token.string in _CLOSE and opened:
+                opened.pop()
+    except (tokenize.TokenError, SyntaxError) as error:  # the file ends inside a string or a statement
+        message = str(error.args[0] if error.args else error)
+        line = error.args[1][0] if isinstance(error, tokenize.TokenError) and len(error.args) > 1 else \
+            getattr(error, "lineno", None)
+        inside = block_of(line) if isinstance(line, int) else None
+        if "string" in message and inside is not None:  # 3.11: "EOF in multi-line string"; 3.12: "unterminated ..."
+            return inside[0], line - inside[1] + 1, "a string"
+        if "EOF" in message and statement is not None and block_of(statement) is not None:
+            return left_open(statement, opened)
     return None

@@ -300,15 +300,12 @@ class Grader:
         if todo not in read.bodies:  # the kit it was read with has no block of this TODO
             return (f"no code for TODO {todo} was found: its markers '### BEGIN TODO {todo}' ... "
                     f"'### END TODO {todo}' are not in your hwlib/")
-        module_level = any(block.module_level for file_blocks in layout.blocks_by_file.values()
-                           for block in file_blocks if block.todo == todo)
-        for body in read.bodies[todo]:
-            try:
-                problem = blocks.check_body(body, module_level)
-            except (RecursionError, MemoryError, ValueError, OverflowError) as error:
-                return _failure("compile", error, todo)
-            if problem:
-                return f"your code for TODO {todo} does not parse ({problem})"
+        try:
+            problem = kits.placement_problem(layout, todo, read.bodies[todo], read.places.get(todo))
+        except (RecursionError, MemoryError, ValueError, OverflowError) as error:
+            return _failure("compile", error, todo)
+        if problem:
+            return f"your code for TODO {todo} does not parse: {problem}"
         return read.bodies[todo]
 
     def _composite(self, todo, read, layout):

@@ -21,6 +21,7 @@ import tokenize
 from pathlib import Path, PurePosixPath
 
 from hwtools import markers
+from hwtools.grade import blocks
 from hwtools.grade.blocks import parse, reindent
 
 IN_SANDBOX = Path(__file__).resolve().parent / "in_sandbox"
@@ -56,15 +57,19 @@ def stub_lines(block, todo):
     return [f"{name} = None" for name in names] or ["pass"]
 
 
-def compose_file(text, blocks, choose):
+def compose_file(text, blocks, choose, spans=None):
     """``text`` with every block replaced by ``choose(block, number)`` (lines; ``number`` counts the
-    blocks of that TODO in this file), markers dropped."""
+    blocks of that TODO in this file), markers dropped. ``spans``: a dict to fill with each block's
+    lines in the result, {block: (first, last)} (1-based, inclusive)."""
     lines = text.split("\n")
     out, position, seen = [], 0, {}
     for block in blocks:
         number = seen[block.todo] = seen.get(block.todo, -1) + 1
         out.extend(lines[position:block.begin])
-        out.extend(choose(block, number))
+        chosen = choose(block, number)
+        if spans is not None:
+            spans[block] = (len(out) + 1, len(out) + max(len(chosen), 1))
+        out.extend(chosen)
         position = block.end + 1
     out.extend(lines[position:])
     return "\n".join(out)
@@ -79,31 +84,58 @@ def _has_code(lines):
         return True
 
 
+def placement_problem(layout, todo, bodies, places=None):
+    """None if the student's blocks ``bodies`` of ``todo`` parse in their place (``blocks.check_in_place``:
+    the kit's file around them, every other block a stub), else the reason, naming the line of the
+    student's file (``places``: (relative path, the index of each block's BEGIN line), as
+    ``Submission.places`` has it) and of the block."""
+    for relative, file_blocks in layout.blocks_by_file.items():
+        mine = [block for block in file_blocks if block.todo == todo]
+        if not mine:
+            continue
+        spans = {}
+        text = compose_file(layout.files[relative], file_blocks, _chooser({todo: bodies}, set()), spans)
+        begins = places[1] if places and places[0] == relative and len(places[1]) == len(mine) else \
+            [block.begin for block in mine]
+        shown = places[0] if places else relative
+
+        def where(index, line):
+            return f"{shown} line {begins[index] + 1 + line} (line {line} of your block" + \
+                (f" {index + 1})" if len(mine) > 1 else ")")
+
+        return blocks.check_in_place(text, [spans[block] for block in mine], where)
+    return None
+
+
+def _chooser(student_bodies, reference_todos):
+    """``choose`` for ``compose_file``: the student's code, the reference's, or a stub (see ``composite_files``)."""
+    def choose(block, number):
+        if block.todo in student_bodies:
+            lines = reindent(student_bodies[block.todo][number], block.indent)
+            if not _has_code(lines):
+                lines.append(f"{block.indent}pass")
+            return lines
+        if block.todo in reference_todos:
+            return list(block.body)
+        return stub_lines(block, block.todo)
+
+    return choose
+
+
 def composite_files(layout, student_bodies, reference_todos, only=None):
     """{relative path: text} of a kit built from ``layout`` (the reference): blocks of the TODOs in
     ``student_bodies`` get that code, blocks in ``reference_todos`` keep the reference's, every
     other block is stubbed. ``only``: the relative paths to include, with the kit's modules they
     import (``kit_imports``: ``hwlib/machinery/todos.py`` once a module imports it), and an empty package
     ``__init__`` where the reference's is left out."""
-    files = {}
+    files, choose = {}, _chooser(student_bodies, reference_todos)
     if only is not None:
         only = kit_imports(layout.files, only)
     for relative, text in layout.files.items():
         if only is not None and relative not in only:
             continue
-        blocks = layout.blocks_by_file.get(relative, [])
-
-        def choose(block, number):
-            if block.todo in student_bodies:
-                lines = reindent(student_bodies[block.todo][number], block.indent)
-                if not _has_code(lines):
-                    lines.append(f"{block.indent}pass")
-                return lines
-            if block.todo in reference_todos:
-                return list(block.body)
-            return stub_lines(block, block.todo)
-
-        files[relative] = compose_file(text, blocks, choose) if blocks else text
+        file_blocks = layout.blocks_by_file.get(relative, [])
+        files[relative] = compose_file(text, file_blocks, choose) if file_blocks else text
     if only is not None:
         for relative in list(files):
             for parent in PurePosixPath(relative).parents:

@@ -584,6 +584,49 @@ def test_a_block_that_does_not_parse_costs_only_its_todo(grader, layout, tmp_pat
     assert points(result) == full_points() | {"2.2.1": 0}
     entry = next(entry for entry in result["todos"] if entry["id"] == "2.2.1")
     assert entry["status"] == "not graded" and "does not parse" in entry["notes"][0]
+    assert "(line 2 of your block) opens a string that the block never closes" in entry["notes"][0]
+
+
+# Issue 40.1: a block is judged in its place in its file, as Python runs it. What is valid where it sits
+# is valid (a break or continue in the loop around it, a return in its function, a nonlocal of that
+# function); what does not parse there is named by its line in the student's file and in the block; a
+# bracket, string or line continuation the block leaves open is named by the line that opens it.
+IN_PLACE = [
+    ("1.3.2", "g = lambda p: eval_params(p, num_rollouts_per_eval, seed=eval_seed)\n"
+              "if not np.all(np.isfinite(params)):\n    break\nparams = params + learning_rate * "
+              "scalar_finite_diff(g, params, fd_step)\nrewards.append(g(params))", None, None),
+    ("1.3.2", "def update():\n    nonlocal params\n    params = params + 0.0\nupdate()\nrewards.append(0.0)", None, None),
+    ("2.3.1", "if c < 0:\n    continue\nself.classifiers[c].gradient_ascent_step(X, (y == c) * 1, learning_rate)",
+     None, None),
+    ("1.3.1", "return float(np.mean([run_policy(policy, seed=seed + k) for k in range(num_rollouts)]))", None, None),
+    ("2.2.1", "values = np.exp(-np.logaddexp(0, -z))\nbreak", 2, "'break' outside loop"),
+    ("1.3.3", "return 0.001", 1, "'return' outside function"),
+    ("1.3.2", "def update():\n    nonlocal theta\n    return 0\nrewards.append(update())", 2,
+     "no binding for nonlocal 'theta' found"),
+    ("2.2.1", "if z.ndim:", 1, "expected an indented block after 'if' statement on line 1 of your block"),
+    ("1.3.2", "g = lambda p: eval_params(p,\n    num_rollouts_per_eval, seed=eval_seed\nparams = params", 1,
+     "opens a bracket '(' that the block never closes"),
+    ("2.2.2", "X_aug = np.hstack([X, np.ones((len(X), 1))])\nprobabilities = X_aug @ \\", 2,
+     "opens a line continuation (a backslash at its end) that the block never closes"),
+    ("2.2.1", "values = 1 / (1 + np.exp(-z))\nnote = \'\'\'unfinished", 2, "opens a string that the block never closes"),
+    ("1.3.3", "LEARNING_RATE = float(\n    0.001", 1, "opens a bracket '(' that the block never closes"),
+]
+
+
+@pytest.mark.quick
+@pytest.mark.parametrize("todo, body, line, said", IN_PLACE, ids=lambda value: str(value)[:30])
+def test_a_block_is_judged_in_its_place_and_named_by_its_line(layout, tmp_path, todo, body, line, said):
+    kits.write_submission(layout, tmp_path, {todo: body}, others="reference")
+    read = blocks.read_submission(tmp_path, layout)
+    problem = kits.placement_problem(layout, todo, read.bodies[todo], read.places[todo])
+    if said is None:
+        assert problem is None
+        return
+    relative, (begin,) = read.places[todo]
+    assert problem.startswith(f"{relative} line {begin + 1 + line} (line {line} of your block)"), problem
+    assert said in problem, problem
+    file_line = (tmp_path / relative).read_text(encoding="utf-8").split("\n")[begin + line]
+    assert file_line.strip() == body.split("\n")[line - 1].strip()  # the line it names is that line of the file
 
 
 def test_answer_key_grades_the_visible_checks_of_a_student_edition(answer_key, layout, tmp_path, tmp_path_factory):
