@@ -36,7 +36,7 @@ import tempfile
 import textwrap
 from pathlib import Path
 
-from hwtools.grade.feedback import FAILURE_FIELDS, field_lines
+from hwtools.grade.feedback import FAILURE_FIELDS, field_lines, first_lines
 from hwtools.grade.in_sandbox.probes import IMPORT_FAILED
 from hwtools.grade.judging import visible_view
 from hwtools.grade.processes import kill_tree
@@ -118,22 +118,31 @@ def _not_done(entry):
 
 
 def _wrap(text, indent, hang=4):
+    """``text`` in lines of at most WIDTH characters, broken between words only: JupyterLab shows a
+    line wider than its output area broken at any character (``word-break: break-all``)."""
     return textwrap.wrap(text, width=WIDTH, initial_indent=indent, subsequent_indent=indent + " " * hang,
-                         break_long_words=True, break_on_hyphens=False) or [indent]
+                         break_long_words=False, break_on_hyphens=False) or [indent]
 
 
-def check_lines(entry):
+MAX_LINES = 12  # what a failing TODO prints unless asked for details
+
+
+def check_lines(entry, details=False):
     """The lines a check cell prints for the grader's result ``entry`` of one TODO: its visible
     checks only (``judging.visible_view``: a check that fails only on hidden inputs passes on the visible
-    ones, and nothing a hidden input shaped is shown)."""
+    ones, and nothing a hidden input shaped is shown). A failing TODO says what is wrong in its first
+    two lines (``feedback.first_lines``), then one line per check and the line that rebuilds the
+    failing input, in at most MAX_LINES lines; ``details``: every failing check's values, tolerance,
+    description and input too."""
     entry = entry if entry.get("visible_only") else visible_view(entry)
     todo, title = entry["id"], entry["title"]
     checks = entry["checks"]
     if not checks and entry["manual_possible"]:
         return _wrap(f"TODO {todo} ({title}) has no automatic checks; it is graded by hand: {entry['manual']}.", "")
     if entry["status"] not in ("graded", "not done yet") or not checks:
-        lines = _wrap(f"TODO {todo} ({title}): not checked ({entry['status']})", "")
-        for note in entry["notes"]:
+        note, *rest = entry["notes"] or [""]
+        lines = _wrap(f"TODO {todo} ({title}): not checked ({entry['status']})" + (f": {note}" if note else ""), "")
+        for note in rest:
             lines += _wrap(note, "  ")
         return lines
     not_done, only_not_done = _not_done(entry)
@@ -154,28 +163,54 @@ def check_lines(entry):
                      "first, then run this check again.", "")
     visible_pass = [check["passed"] or check["failed_on"] == "hidden" for check in checks]
     passed = sum(visible_pass)
-    if len(checks) == 1:
-        summary = "the visible check passes" if passed else "the visible check fails"
+    if passed == len(checks):
+        return _passing(entry, checks, details)
+    counted = f"{passed} of {len(checks)} visible checks pass" if len(checks) > 1 else "the visible check fails"
+    failing = [(check, _visible_failure(entry, check)) for check, ok in zip(checks, visible_pass) if not ok]
+    first = next((failure for _, failure in failing if failure), None)
+    if first is not None and entry.get("first_failure") is None:
+        entry = {**entry, "first_failure": {"check": failing[0][0]["check"], "hidden": False, **first}}
+    raised = [failure["actual"] for _, failure in failing if failure and IMPORT_FAILED in failure["actual"]]
+    if raised and not entry.get("mistake"):  # the kit stops while imported: every check fails the same way
+        head = [f"TODO {todo} fails: {raised[0]}"]
     else:
-        summary = f"all {len(checks)} visible checks pass" if passed == len(checks) else \
-            f"{passed} of {len(checks)} visible checks pass"
-    if entry.get("blame"):  # the TODO at fault first (the preview: hwtools/grade/blame.py)
-        summary = f"{entry['blame']}; {summary}"
-    mistake = (entry.get("mistake") or {}).get("diagnosis")
-    if mistake:  # what is wrong, in the first lines (each failing check below says which of its inputs show it)
-        summary = f"{summary}: {mistake}"
-    raised = [failure["actual"] for failure in (_visible_failure(entry, check) for check in checks)
-              if failure and IMPORT_FAILED in failure["actual"]]
-    if raised and not mistake:  # the kit stops while imported: every check fails the same way
-        summary = f"{summary}: {raised[0]}"
-    lines = _wrap(f"TODO {todo} ({title}): {summary}", "")
+        head = first_lines(entry, "fails")
+    lines = [line for number, text in enumerate(head) for line in _wrap(text, "" if number == 0 else "  ")]
+    lines.append("")
+    lines.append(f"{title}: {counted}")
     for check, ok in zip(checks, visible_pass):
-        lines += _wrap(f"{'pass' if ok else 'FAIL'}  {check['check']}", "  ", hang=6)
-        failure = None if ok else _visible_failure(entry, check)
-        if failure:
-            for name in FAILURE_FIELDS:  # the words of every report (feedback.failure_words)
-                if failure.get(name) and not (name == "mistake" and failure[name] == mistake):
-                    lines += field_lines(name, failure[name], "        ", WIDTH)
+        lines += _wrap(f"{'pass' if ok else 'FAIL'}  {check['check'] if details else check.get('short') or check['check']}",
+                       "  ", hang=6)
+        failure = None if ok or not details else _visible_failure(entry, check)
+        for name in FAILURE_FIELDS if failure else ():
+            if failure.get(name) and name != "check":  # the words of every report (feedback.failure_words)
+                lines += field_lines(name, failure[name], "        ", WIDTH)
+    notes = [note for note in entry["notes"] if not note.startswith("not a failure, but your code")]
+    if details:
+        lines += [line for note in notes for line in _wrap(f"note: {note}", "  ")]
+        return lines
+    if first and first.get("reproduce"):
+        lines += field_lines("reproduce", first["reproduce"], "  ", WIDTH)
+    more = f"check(\"{todo}\", details=True) shows the inputs, the values in full and the tolerances"
+    more += f"; and {len(notes)} note(s)" if notes else ""
+    room = MAX_LINES - len(lines) - 1
+    if room < 0:  # the first lines and the checks come first; the rest is one call away
+        lines = lines[:MAX_LINES - 1]
+    return lines + [more if len(more) <= WIDTH else more[:WIDTH].rsplit(" ", 1)[0]]
+
+
+def _passing(entry, checks, details):
+    """A passing TODO's lines: the count, each check, a note that costs nothing first, then the others."""
+    todo, title = entry["id"], entry["title"]
+    summary = "the visible check passes" if len(checks) == 1 else f"all {len(checks)} visible checks pass"
+    if entry.get("blame"):
+        summary = f"{entry['blame']}; {summary}"
+    lines = _wrap(f"TODO {todo} ({title}): {summary}", "")
+    free = [note for note in entry["notes"] if note.startswith("not a failure, but your code")]
+    lines += [line for note in free for line in _wrap(f"note: {note}", "  ")]
+    for check in checks:
+        lines += _wrap(f"pass  {check['check']}", "  ", hang=6)
     for note in entry["notes"]:
-        lines += _wrap(f"note: {note}", "  ")
+        if note not in free:
+            lines += _wrap(f"note: {note}", "  ")
     return lines

@@ -26,9 +26,11 @@ from hwtools.todos import TODO_BY_ID
 _loaded = {}  # hwlib module file -> its modification time when this kernel had it loaded
 
 
-def check(todo):
-    """Run TODO ``todo``'s visible checks through the kit's grader and print one line per check."""
-    lines = check_lines(grade_todo(todo))
+def check(todo, details=False):
+    """Run TODO ``todo``'s visible checks through the kit's grader and print what they say: for a
+    failing TODO what is wrong in the first two lines and at most 12 lines in all; ``details=True``
+    adds each failing check's input, values and tolerance."""
+    lines = check_lines(grade_todo(todo), details=details)
     lines += _stale_lines(todo)
     print("\n".join(lines))
 

@@ -110,7 +110,8 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
         # The first visible input this check fails on, shown in full (the notebook's check cells show it per check).
         first = next(((case_id, args, verdict) for v, case_id, args, verdict in verdicts if v and not verdict.passed), None)
         visible_failure = None if first is None else _visible_failure(behaviour, *first, scrub)
-        check = {"id": behaviour.id, "check": behaviour.description, "points": behaviour.points, "passed": passed,
+        check = {"id": behaviour.id, "check": behaviour.description, "short": behaviour.short, "points": behaviour.points,
+                 "passed": passed,
                  "failed_on": failed_on, "visible_inputs": sum(v for v, _, _, _ in verdicts),
                  "hidden_inputs": sum(not v for v, _, _, _ in verdicts), "visible_failure": visible_failure}
         if first is not None and first[2].rule:
@@ -120,7 +121,7 @@ def judge_todo(todo, run, services, cases, expected_of, scrub, limits, seen_note
             if visible_failure is not None:
                 entry["first_failure"] = {"check": behaviour.description, "hidden": False, **visible_failure}
             else:
-                entry["first_failure"] = {"check": behaviour.description, "hidden": True,
+                entry["first_failure"] = {"check": behaviour.description, "short": behaviour.short, "hidden": True,
                                           "input": "a hidden input (not shown)"}
     entry["auto_earned"] = round(min(_capped(todo, earned, passed_by_key, entry["notes"]), info.auto), 2)
     entry["notes"].extend(seen_notes)
@@ -160,10 +161,23 @@ def visible_view(entry):
 def _visible_failure(behaviour, case_id, args, verdict, scrub):
     """What a failing visible input shows: the input, the line that rebuilds it in the student's
     kernel, expected and actual, where they differ and the tolerance (``feedback.FAILURE_FIELDS``)."""
-    failure = {"input": scrub(show(args)), "reproduce": checks.rebuild_line(case_id, behaviour.probe),
+    failure = {"summary": scrub(_summary(verdict)), "short": behaviour.short, "input": scrub(show(args)),
+               "reproduce": checks.rebuild_line(case_id, behaviour.probe),
                "expected": scrub(verdict.expected), "actual": scrub(verdict.actual)}
     failure.update({name: scrub(getattr(verdict, name)) for name in ("difference", "tolerance") if getattr(verdict, name)})
     return {name: value for name, value in failure.items() if value or name in ("expected", "actual", "input")}
+
+
+SHORT = 60  # characters: an expected value this short is said in full in a failure's first line
+
+
+def _summary(verdict):
+    """What is wrong in one clause: the judge's ``summary``, else expected against actual (the actual
+    alone where the expected value is a sentence: it is said in full below)."""
+    if verdict.summary:
+        return verdict.summary
+    actual = verdict.actual if len(verdict.actual) <= 2 * SHORT else verdict.actual[:2 * SHORT].rsplit(" ", 1)[0] + " ..."
+    return f"expected {verdict.expected}, actual {actual}" if len(verdict.expected) <= SHORT else f"actual {actual}"
 
 
 def name_mistake(entry, named, scrub=str):

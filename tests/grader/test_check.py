@@ -69,35 +69,71 @@ def a_check(description, passed, failed_on=None, actual=None):
             "hidden_inputs": 3, "visible_failure": failure}
 
 
-def test_one_line_per_check_and_the_failing_inputs():
+def test_the_first_two_lines_say_what_is_wrong_then_one_line_per_check():
+    """Issue 40.4: line 1 the TODO and expected against actual, line 2 the check that fails in one line;
+    then a line per check and the line that rebuilds the input; the rest is one call away."""
     lines = check_lines(entry([a_check("one step for every coordinate", True),
                                a_check("a step per coordinate", False, "visible", "[0.0, 0.0]")]))
-    assert lines[0] == "TODO 1.2.1 (central finite differences, eq. (3)): 1 of 2 visible checks pass"
-    assert lines[1] == "  pass  one step for every coordinate"
-    assert lines[2] == "  FAIL  a step per coordinate"
-    assert [line.split()[0] for line in lines[3:]] == ["expected:", "actual:", "input:"]  # what is wrong, then where
-    assert lines[3].endswith("[2.0, 4.0]") and lines[4].endswith("[0.0, 0.0]") and lines[5].endswith("x=[1.0, 2.0], h=0.5")
+    assert lines[:2] == ["TODO 1.2.1 fails: expected [2.0, 4.0], actual [0.0, 0.0]", "  the check: a step per coordinate"]
+    assert lines[2:5] == ["", "central finite differences, eq. (3): 1 of 2 visible checks pass",
+                          "  pass  one step for every coordinate"]
+    assert lines[5] == "  FAIL  a step per coordinate" and lines[-1].startswith('check("1.2.1", details=True) shows')
+    detailed = check_lines(entry([a_check("one step for every coordinate", True),
+                                  a_check("a step per coordinate", False, "visible", "[0.0, 0.0]")]), details=True)
+    failing = detailed.index("  FAIL  a step per coordinate")
+    assert [line.split()[0] for line in detailed[failing + 1:]] == ["expected:", "actual:", "input:"]
+    assert detailed[failing + 3].endswith("x=[1.0, 2.0], h=0.5")
 
 
-def test_a_known_mistake_is_named_in_the_first_line():
-    """Issue 32.5: the first lines say what is wrong and where; the mistake is not said twice."""
+def test_a_known_mistake_is_named_in_the_second_line():
+    """Issue 32.5, 40.4: the first lines say what is wrong and where; the mistake is not said twice."""
     check = a_check("a step per coordinate", False, "visible", "[0.0, 0.0]")
     check["visible_failure"] = {"mistake": "a forward difference, (f(x + h) - f(x)) / h", **check["visible_failure"]}
     lines = check_lines({**entry([check]), "mistake": {"id": "forward_difference",
                                                       "diagnosis": "a forward difference, (f(x + h) - f(x)) / h"}})
-    first_two = " ".join(" ".join(lines[:2]).split())  # wrapped at WIDTH
-    assert first_two.endswith("the visible check fails: a forward difference, (f(x + h) - f(x)) / h"), lines
-    failing = next(i for i, line in enumerate(lines) if line.startswith("  FAIL"))
-    assert [line.split()[0] for line in lines[failing + 1:]] == ["expected:", "actual:", "input:"]
+    assert lines[:2] == ["TODO 1.2.1 fails: expected [2.0, 4.0], actual [0.0, 0.0]",
+                         "  a forward difference, (f(x + h) - f(x)) / h"], lines
+    assert sum("a forward difference" in line for line in lines) == 1
 
 
 def test_a_failure_shows_where_it_differs_and_the_tolerance_as_every_report_does():
     check = a_check("sigmoid far out", False, "visible", "2.06115e-09")
-    check["visible_failure"].update(difference="first difference at index [0]: relative difference 80.5",
-                                    tolerance="|actual - expected| <= 1e-12 * |expected| + 1e-15")
+    check["visible_failure"].update(difference="differs most at index [0]: relative difference 80.5",
+                                    tolerance="|actual - expected| <= 1e-12 * |expected| + 1e-15",
+                                    summary="at index [0]: expected 2.0, actual 2.06115e-09")
     lines = check_lines(entry([check]))
-    assert [line.split()[0] for line in lines[2:]] == ["expected:", "actual:", "difference:", "tolerance:", "input:"]
-    assert lines[4].endswith("relative difference 80.5") and lines[5].endswith("+ 1e-15")
+    assert lines[0] == "TODO 1.2.1 fails: at index [0]: expected 2.0, actual 2.06115e-09"
+    lines = check_lines(entry([check]), details=True)
+    failing = lines.index("  FAIL  sigmoid far out")
+    assert [line.split()[0] for line in lines[failing + 1:]] == ["expected:", "actual:", "difference:", "tolerance:",
+                                                                 "input:"]
+    assert lines[failing + 3].endswith("relative difference 80.5") and lines[failing + 4].endswith("+ 1e-15")
+
+
+def test_a_failing_todo_prints_at_most_twelve_lines_never_broken_mid_word():
+    """However many checks fail and however long the words: at most 12 lines, each at most WIDTH wide
+    where it has a space to break at (JupyterLab breaks wider lines at any character)."""
+    checks = [a_check(f"check {k}: " + "a long description of what is checked " * 3, False, "visible", "[0.0] " * 40)
+              for k in range(6)]
+    for check in checks:
+        check["visible_failure"]["reproduce"] = ('from hwtools.cases import visible_case; f, x, h = '
+                                                 'visible_case("1.2.1/equation-3/v0")  # then scalar_finite_diff(f, x, h)')
+    lines = check_lines(entry(checks, notes=["a note " * 30, "another"]))
+    assert len(lines) <= check_cell.MAX_LINES, lines
+    assert all(len(line) <= check_cell.WIDTH for line in lines), [line for line in lines if len(line) > check_cell.WIDTH]
+    assert lines[-1].startswith('check("1.2.1", details=True)')
+    detailed = check_lines(entry(checks, notes=["a note"]), details=True)
+    assert len(detailed) > check_cell.MAX_LINES and all(len(line) <= check_cell.WIDTH for line in detailed)
+
+
+def test_a_note_that_costs_nothing_comes_first():
+    """A 1.2.1 that returns a list passes; the note that it breaks 1.3.2's arithmetic is its second line."""
+    passing = {**entry([a_check("a step per coordinate", True)]), "breaks_callers": "returns a list where the training code"
+               " does arithmetic on the gradient (learning_rate * gradient): return an array (np.array(...))"}
+    passing["notes"] = [f"not a failure, but your code {passing['breaks_callers']}"]
+    lines = check_lines(passing)
+    assert lines[0].endswith("the visible check passes")
+    assert lines[1].startswith("  note: not a failure, but your code returns a list"), lines
 
 
 def test_a_check_that_fails_only_on_hidden_inputs_passes_on_the_visible_ones():
@@ -123,9 +159,9 @@ def test_a_todo_waiting_for_another_names_it():
 
 
 def test_code_that_cannot_run_says_why_and_a_manual_todo_says_who_grades_it():
-    lines = check_lines(entry([], status="not graded", notes=["your code for TODO 1.2.1 does not parse (line 2)"]))
-    assert lines == ["TODO 1.2.1 (central finite differences, eq. (3)): not checked (not graded)",
-                     "  your code for TODO 1.2.1 does not parse (line 2)"]
+    lines = check_lines(entry([], status="not graded", notes=["your code for TODO 1.2.1 does not parse: line 2"]))
+    assert " ".join(" ".join(lines).split()) == ("TODO 1.2.1 (central finite differences, eq. (3)): not checked (not "
+                                                 "graded): your code for TODO 1.2.1 does not parse: line 2")
     manual = {**entry([], status="graded by hand", todo="1.1.2"), "manual_possible": 2, "manual": "report: the table"}
     said = " ".join(" ".join(check_lines(manual)).split())
     assert said.startswith("TODO 1.1.2 (") and "graded by hand: report: the table" in said
@@ -212,7 +248,7 @@ def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_in
     assert visible(preview) == visible(graded)
     assert not all(ok for _, ok, _ in visible(preview)), "a wrong solution fails a visible check"
     lines = check_lines(preview)
-    assert any(line.startswith("  FAIL") for line in lines) and any("expected:" in line for line in lines)
+    assert any(line.startswith("  FAIL") for line in lines) and "expected" in lines[0] and "actual" in lines[0]
     named = {"2.2.1": "sigmoid_wrong_sign.txt", "1.2.1": "finite_diff_flipped_sign.txt"}[todo]  # the known mistake, in its words
     assert mistakes.read_wrong_solution(WRONG / named).diagnosis in " ".join(" ".join(lines).split()), lines
 

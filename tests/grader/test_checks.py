@@ -31,6 +31,7 @@ from hwtools.grade.checks.verdicts import show, tell_apart
 from hwtools.grade.episodes import Environments, Records
 from hwtools.grade.instructor.class_feedback import todo_markdown
 from hwtools.check_cell import check_lines
+from hwtools import check_cell
 from hwtools.grade.feedback import failure_words, render
 import editions
 from test_grading import full_points, parse_wrong_solution, points
@@ -77,7 +78,8 @@ def test_a_tiny_value_is_shown_as_itself_and_its_difference_relative():
     verdict = judged("2.2.1/precision", {"z": z}, actual, expected)
     assert not verdict.passed
     assert "2.53055e-11" in verdict.expected and "2.53055e-11" in show(expected[5])
-    assert verdict.difference.startswith("first difference at index [5] (z[5] = -24.4): expected 2.53055e-11, actual 0")
+    assert verdict.difference.startswith("differs most at index [5] (z[5] = -24.4): expected 2.53055e-11, actual 0")
+    assert verdict.summary == "at z[5] = -24.4: expected 2.53055e-11, actual 0 (1 of 6 differ)"
     assert "relative difference 1;" in verdict.difference and "1 of 6 entries differ" in verdict.difference
     assert verdict.tolerance.startswith("|actual - expected| <= 1e-12 * |expected| + 1e-15;")
     # the values check lets |z| > 20 be 1e-8 off (a sigmoid clipped at +-20 is a shortcut), and says so
@@ -103,8 +105,9 @@ def test_the_difference_names_the_entry_and_its_input():
     args = {"params": np.array([[1.0, 2.0, 0.0, 0.0], [3.0, -1.0, 1.0, 2.0]]),
             "obs": np.array([[1.0, -1.0, 0.0, 0.0], [1.0, 3.0, 0.0, 0.0]])}
     verdict = judged("1.1.1/equation-1", args, [1, 1], [1, 0])
-    assert verdict.difference == ("first difference at index [1] (row 1: params [3, -1, 1, 2], obs [1, 3, 0, 0], "
-                                  "params . obs = 0): expected 0, actual 1; 1 of 2 entries differ")
+    assert verdict.difference == ("differs most at index [1] (row 1 (params . obs = 0): params [3, -1, 1, 2], obs "
+                                  "[1, 3, 0, 0]): expected 0, actual 1; 1 of 2 entries differ")
+    assert verdict.summary == "at row 1 (params . obs = 0): expected 0, actual 1 (1 of 2 differ)"
     assert verdict.tolerance == "exactly equal"
     steps = {"n_features": 2, "steps": 2}
     verdict = judged("2.2.3/two-steps", steps, [[0.1, 0.2, 0.3], [0.4, 0.5, 0.6]], [[0.1, 0.2, 0.3], [0.4, 0.5, 0.7]])
@@ -113,6 +116,9 @@ def test_the_difference_names_the_entry_and_its_input():
     fd = {"x": np.array([0.5, -1.0]), "h": np.array([0.1, 0.2])}
     verdict = judged("1.2.1/equation-3", fd, [1.0, 2.5], [1.0, 2.0])
     assert "index [1] (coordinate 1: x[1] = -1, h[1] = 0.2): expected 2, actual 2.5" in verdict.difference
+    # where they differ most, not where they first differ (issue 40.4): the entry farthest outside the tolerance
+    verdict = judged("1.2.1/equation-3", fd, [1.01, 2.5], [1.0, 2.0])
+    assert verdict.summary == "at coordinate 1: expected 2, actual 2.5 (2 of 2 differ)", verdict.summary
 
 
 def test_a_real_run_update_off_equation_4_says_what_it_gives_and_where_in_numbers():
@@ -131,7 +137,7 @@ def test_a_real_run_update_off_equation_4_says_what_it_gives_and_where_in_number
     assert verdict.expected == (f"theta[1][2] = theta[0][2] + learning_rate * (g+ - g-) / (2 h) = {show(history[0][2])} + "
                                 f"{show(args['learning_rate'])} * (102 - 90) / 0.7 = {show(wanted)}, with g+ and g- your "
                                 "eval_params at theta[0] + h e_2 and theta[0] - h e_2 (h = fd_step = 0.35)")
-    assert verdict.difference.startswith(f"the value differs (theta[1][2], update 1): expected {show(wanted)}, actual ")
+    assert verdict.difference.startswith(f"the value differs (theta[1][2] in update 1): expected {show(wanted)}, actual ")
     assert verdict.tolerance.startswith("|actual - expected| <= 1e-09 * |expected| + 1e-09")
     records = result["records"]
     kept = ~np.all(np.isclose(records["evaluation_params"], history[0] - 0.35 * np.eye(4)[1]), axis=1)  # no g- of e_1
@@ -166,42 +172,56 @@ def test_an_answer_is_its_numbers_in_a_row_where_the_handout_says_so():
 
 
 def test_every_failure_has_one_wording_in_every_report():
-    failure = {"check": "sigma(z) ...", "hidden": False,
-               "mistake": "your values equal 1 / (1 + e^z), the sign of the exponent flipped", "input": "z=[1]",
+    """Issue 40.4: every report of a failure opens with the same two lines, what is wrong (the TODO, its
+    verdict, expected against actual where they differ most) and why (the known mistake), then the
+    values, the check in full, the input and the line that rebuilds it, never broken mid-word."""
+    failure = {"check": "sigma(z) = 1 / (1 + e^(-z)) for every entry ...", "short": "sigma(z) = 1 / (1 + e^(-z))",
+               "hidden": False, "mistake": "your values equal 1 / (1 + e^z), the sign of the exponent flipped",
+               "summary": "at z[0] = 1: expected 0.731059, actual 0.268941", "input": "z=[1]",
                "reproduce": 'from hwtools.cases import visible_case; z = visible_case("2.2.1/values/v0")  # then sigmoid(z)',
-               "expected": "[0.731059]",
-               "actual": "[0.5]", "difference": "first difference at index [0] (z[0] = 1): expected 0.731059, actual 0.5",
+               "expected": "[0.731059]", "actual": "[0.268941]",
+               "difference": "differs at index [0] (z[0] = 1): expected 0.731059, actual 0.268941",
                "tolerance": "|actual - expected| <= 1e-12 * |expected| + 1e-15"}
-    headline, fields = failure_words(failure)
-    assert [name for name, _ in fields] == ["mistake", "expected", "actual", "difference", "tolerance", "input",
-                                            "reproduce"]  # what is wrong first, then the input (issue 32.5)
     entry = {"id": "2.2.1", "title": "sigmoid", "auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0,
              "manual": "", "status": "graded", "notes": [], "first_failure": failure,
-             "checks": [{"check": "sigma(z) ...", "points": 2, "passed": False, "failed_on": "visible",
-                         "visible_inputs": 1, "hidden_inputs": 1,  # as judging gives it: the check's own failure
+             "mistake": {"id": "sigmoid_wrong_sign", "diagnosis": failure["mistake"]},
+             "checks": [{"check": failure["check"], "short": failure["short"], "points": 2, "passed": False,
+                         "failed_on": "visible", "visible_inputs": 1, "hidden_inputs": 1,  # as judging gives it
                          "visible_failure": {k: v for k, v in failure.items() if k not in ("check", "hidden")}}]}
+    first, fields = failure_words(entry, "earns 0 of 2 points")
+    assert first == ["TODO 2.2.1 earns 0 of 2 points: at z[0] = 1: expected 0.731059, actual 0.268941", failure["mistake"]]
+    assert [name for name, _ in fields] == ["expected", "actual", "difference", "tolerance", "check", "input",
+                                            "reproduce"]  # the values, then the check, the input and its line
     result = {"isolated": True, "isolation": "bwrap", "submission": "s", "reference": "r", "one_mistake_one_place": True,
               "todos": [entry], "notes": [], "total": {"auto_earned": 0.0, "auto_possible": 2, "manual_possible": 0}}
+
     def plain(text):
         return " ".join(text.split())
 
+    statements = ['from hwtools.cases import visible_case', 'z = visible_case("2.2.1/values/v0")', "# then sigmoid(z)"]
     reports = {"text report (preview and grade)": render(result), "class feedback": todo_markdown(entry),
-               "Gradescope's visible test": todo_markdown(entry, visible_only=True)}
+               "Gradescope's visible test": todo_markdown(entry, visible_only=True),
+               "check cell, details": "\n".join(check_lines(entry, details=True))}
     for name, report in reports.items():
-        assert plain(headline) in plain(report), name
+        said = first if "visible" not in name and "cell" not in name else [first[0].replace("earns 0 of 2 points", "fails"),
+                                                                           first[1]]
+        assert plain("\n".join(said)) in plain(report), (name, report)
         for label, words in fields:
-            assert plain(words) in plain(report) and f"{label}:" in report, (name, label)
-        assert failure["reproduce"] in report.splitlines() or any(line.endswith(failure["reproduce"])
-                                                                 for line in report.splitlines()), name  # one line
-    cell = "\n".join(check_lines(entry))  # the notebook's check cell
-    for label, words in fields:
-        assert plain(words) in plain(cell) and f"{label}:" in cell, ("check cell", label)
-    assert any(line.endswith(failure["reproduce"]) for line in cell.splitlines())
-    hidden = {"check": "sigma(z) ...", "hidden": True, "input": "a hidden input (not shown)"}
-    headline, fields = failure_words(hidden)
-    assert fields == [] and "on a hidden input" in headline
+            if label != "reproduce" and not (label == "check" and "cell" in name):
+                assert plain(words) in plain(report) and f"{label}:" in report, (name, label)
+        lines = [line.strip() for line in report.splitlines()]  # Python to copy: whole statements, one a line
+        assert failure["reproduce"] in lines or all(any(line.endswith(s) for line in lines) for s in statements), name
+    cell = check_lines(entry)  # the notebook's check cell: the first two lines say what is wrong, 12 at most
+    assert cell[0] == "TODO 2.2.1 fails: at z[0] = 1: expected 0.731059, actual 0.268941"
+    assert cell[1] == "  " + failure["mistake"] and len(cell) <= check_cell.MAX_LINES
+    assert [line.strip()[len("reproduce:"):].strip() if "reproduce:" in line else line.strip() for line in cell
+            if any(line.strip().endswith(s) for s in statements)] == statements
+    assert cell[-1].startswith('check("2.2.1", details=True)')
+    hidden = {"check": "sigma(z) ...", "short": "sigma(z)", "hidden": True, "input": "a hidden input (not shown)"}
     entry["first_failure"] = hidden
-    assert plain(headline) in plain(render(result)) and plain(headline) in plain(todo_markdown(entry))
+    first, fields = failure_words(entry, "earns 0 of 2 points")
+    assert fields == [] and "on a hidden input" in first[0] and first[1] == "the check: sigma(z)"
+    assert plain(first[0]) in plain(render(result)) and plain(first[0]) in plain(todo_markdown(entry))
     assert "hidden input" not in todo_markdown(entry, visible_only=True)
 
 

@@ -29,6 +29,7 @@ class Behaviour:
 
     todo: str
     key: str
+    short: str  # what is checked in one line: the first lines of a failure say it (``feedback.first_lines``)
     description: str
     probe: str  # the probe the worker runs on each input (in_sandbox/probes.py)
     make: object  # make(rng, variant) -> the arguments of one case

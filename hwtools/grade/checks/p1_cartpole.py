@@ -73,7 +73,7 @@ def make_policy_states(rng, variant):
 def _policy_row(args, index):
     (row,) = index
     params, obs = np.asarray(args["params"][row]), np.asarray(args["obs"][row])
-    return f"row {row}: params {show(params)}, obs {show(obs)}, params . obs = {_number_text(params @ obs)}"
+    return f"row {row} (params . obs = {_number_text(params @ obs)}): params {show(params)}, obs {show(obs)}"
 
 
 ACTION_KINDS = {1: "a numpy bool", 2: "a float", 3: "an array", 4: "something else"}  # the worker's codes
@@ -92,15 +92,18 @@ def judge_env_actions(args, result, expected, services):
     refused = int(np.sum(~np.asarray(accepted, dtype=bool)))
     return Verdict(False, "the int 0 or 1, which env.step takes (a Python bool or a numpy integer works too)",
                    show(result["values"]["actions"]), f"the action of row {row} is {what}, which env.step refuses "
-                   f"({refused} of {len(accepted)} rows); int(...) makes it the int 0 or 1")
+                   f"({refused} of {len(accepted)} rows); int(...) makes it the int 0 or 1",
+                   summary=f"at row {row}: expected the int 0 or 1, actual {what}, which env.step refuses")
 
 
 TODO_1_1_1 = (
-    Behaviour("1.1.1", "equation-1", "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)): on "
+    Behaviour("1.1.1", "equation-1", "equation (1): action 1 exactly where params . obs < 0 (a score of 0 gives 0)",
+              "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)): on "
               "random parameters and states, and on scores of exactly 0 (the tie: action 0, the < is strict) and "
               "just above and below 0, mixed in among them", "policy_choices", make_policy_states,
               exact("actions", EXACTLY, _policy_row), exact=True, value=True),
-    Behaviour("1.1.1", "env-action", "the right actions, each one env.step takes: the int 0 or 1 (a Python bool "
+    Behaviour("1.1.1", "env-action", "each action one env.step takes: the int 0 or 1",
+              "the right actions, each one env.step takes: the int 0 or 1 (a Python bool "
               "or a numpy integer works too; a float or a numpy bool does not)", "policy_choices", make_policy_states,
               judge_env_actions, visible_count=1, exact=True),
 )
@@ -166,12 +169,14 @@ def _no_arithmetic(result):
 
 
 TODO_1_2_1 = (
-    Behaviour("1.2.1", "equation-3", "central differences, equation (3), with a different step h_i for each "
+    Behaviour("1.2.1", "equation-3", "equation (3) with a step h_i per coordinate: only coordinate i moves, by +-h_i, over 2 h_i",
+              "central differences, equation (3), with a different step h_i for each "
               "coordinate: only coordinate i moves, by +-h_i, and the difference is divided by 2 h_i; on functions "
               "where a forward difference, or a point other than x, is off (the answer: N numbers, shaped like x "
               "or in a list)", "finite_diff", make_fd_steps, exact("gradient", FD_TOLERANCE, _coordinate),
               exact=True, value=True, breaks_callers=_no_arithmetic),
-    Behaviour("1.2.1", "one-step", "central differences with one step h for every coordinate (h a number or "
+    Behaviour("1.2.1", "one-step", "equation (3) with one step h for every coordinate, also for a single number x",
+              "central differences with one step h for every coordinate (h a number or "
               "equal steps), also for a single number x (a number or one number in a list or array)",
               "finite_diff", make_fd_uniform, exact("gradient", FD_TOLERANCE, _coordinate), visible_count=3,
               exact=True),
@@ -221,8 +226,11 @@ def _first_call(args, result, want):
     episodes, problem = _eval_episodes(args, result)
     if problem:  # the known mistake "one_episode": one episode per call where num_rollouts asks for more
         one = args["num_rollouts"] > 1 and int(np.sum(result["records"]["episode_direct"])) == 2
+        played = int(np.sum(result["records"]["episode_direct"]))
         return None, Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}",
-                             rule="one_episode" if one else "")
+                             rule="one_episode" if one else "",
+                             summary=f"expected {2 * args['num_rollouts']} episodes in two calls with num_rollouts="
+                                     f"{args['num_rollouts']}, actual {played} (returned {show(result['values']['value'])})")
     return {name: part[:args["num_rollouts"]] for name, part in episodes.items()}, None
 
 
@@ -255,17 +263,22 @@ def judge_eval_mean(args, result, expected, services):
         wrong = int(np.flatnonzero(~first["actions_follow"])[0])
         played = f"params {show(first['params'][wrong])}" if first["doors"][wrong] != OWN_LOOP else \
             "actions that are not those of CartPoleLinearPolicy(params)"
-        return Verdict(False, want, f"episode {wrong + 1} was played with {played}")
+        return Verdict(False, want, f"episode {wrong + 1} was played with {played}",
+                       summary=f"episode {wrong + 1} was played with {played}, not CartPoleLinearPolicy(params)")
     if not np.all(first["finished"]):
         wrong = int(np.flatnonzero(~first["finished"])[0])
         return Verdict(False, want, f"episode {wrong + 1} stopped before it ended (no step answered terminated or "
-                                    "truncated)")
+                                    "truncated)", summary=f"episode {wrong + 1} stopped before it ended")
     if not _distinct(first["starts"]):
-        return Verdict(False, want, f"episodes from the same start state: seeds {_shown_seeds(first['seeds'], first['seeded'])}")
+        seeds = _shown_seeds(first['seeds'], first['seeded'])
+        return Verdict(False, want, f"episodes from the same start state: seeds {seeds}",
+                       summary=f"expected {count} different start states, actual {len(np.unique(first['starts'], axis=0))} "
+                               f"(seeds {seeds})")
     mean = float(np.mean(first["rewards"]))
     value = result["values"]["value"]
     return Verdict(_close(value, mean, 1e-9, 1e-9), f"{want}: {show(mean)} (rewards {show(first['rewards'])})",
-                   show(value))
+                   show(value), summary=f"expected the mean {show(mean)} of the rewards {show(first['rewards'])}, "
+                                        f"actual {show(value)}")
 
 
 def judge_eval_distinct(args, result, expected, services):
@@ -275,8 +288,8 @@ def judge_eval_distinct(args, result, expected, services):
     if stop:
         return stop
     seeds, seeded, starts = first["seeds"], first["seeded"], first["starts"]
-    return Verdict(_distinct(starts), want, f"{len(np.unique(starts, axis=0))} different start state(s), seeds "
-                                            f"{_shown_seeds(seeds, seeded)}")
+    actual = f"{len(np.unique(starts, axis=0))} different start state(s), seeds {_shown_seeds(seeds, seeded)}"
+    return Verdict(_distinct(starts), want, actual, summary=f"expected {count} different start states, actual {actual}")
 
 
 def judge_eval_repeat(args, result, expected, services):
@@ -295,18 +308,22 @@ def judge_eval_repeat(args, result, expected, services):
     if not same_starts:
         actual += " (the second call's episodes started from other states" + \
             ("" if np.all(determined) else ": an episode without a seed starts from a random state") + ")"
-    return Verdict(same_starts and same, "the same number twice, from the same start states", actual)
+    return Verdict(same_starts and same, "the same number twice, from the same start states", actual,
+                   summary=f"expected the same number twice, actual {actual}")
 
 
 TODO_1_3_1 = (
-    Behaviour("1.3.1", "mean-reward", "eval_params returns the mean total reward of num_rollouts episodes of "
+    Behaviour("1.3.1", "mean-reward", "the mean total reward of num_rollouts episodes of CartPoleLinearPolicy(params)",
+              "eval_params returns the mean total reward of num_rollouts episodes of "
               "CartPoleLinearPolicy(params), each from its own start state, played with run_policy or in a "
               "gym.make('CartPole-v1') environment (every reset and step is answered and recorded on the "
               "grader's side)", "eval_params", make_eval_case, judge_eval_mean, visible_count=3, value=True),
-    Behaviour("1.3.1", "different-starts", "the episodes of one evaluation start from different start states "
+    Behaviour("1.3.1", "different-starts", "the episodes of one evaluation start from different states",
+              "the episodes of one evaluation start from different start states "
               "(counts only up to 30% of the TODO while the mean is wrong)", "eval_params", make_eval_case,
               judge_eval_distinct, judged_on="mean-reward"),
-    Behaviour("1.3.1", "repeatable", "the same call gives the same number again, from the same start states "
+    Behaviour("1.3.1", "repeatable", "the same call gives the same number, from the same start states",
+              "the same call gives the same number again, from the same start states "
               "(seeded from the seed argument; counts only up to 30% of the TODO while the mean is wrong)",
               "eval_params", make_eval_case, judge_eval_repeat, judged_on="mean-reward"),
 )
@@ -352,7 +369,8 @@ def _training_run(args, result, want, shape_want=None):
         return None, Verdict(False, want, result["error"])
     wrong_shape = _training_shape(args, result["values"])
     if wrong_shape:
-        return None, Verdict(False, shape_want or want, wrong_shape)
+        return None, Verdict(False, shape_want or want, wrong_shape, summary=f"expected {args['iterations']} updates "
+                             f"(params_history of shape ({args['iterations'] + 1}, 4)), actual {wrong_shape}")
     return result["values"], None
 
 
@@ -366,7 +384,8 @@ def _rollouts_used(args, result, want):
     if wrong.size:
         return Verdict(False, want, f"evaluation {int(wrong[0]) + 1} of {len(rollouts)} asked eval_params for "
                                     f"{int(rollouts[wrong[0]])} rollout(s); num_rollouts_per_eval is {args['rollouts']}",
-                       rule="other_rollouts")
+                       rule="other_rollouts", summary=f"at evaluation {int(wrong[0]) + 1}: expected {args['rollouts']} "
+                                                      f"rollouts (num_rollouts_per_eval), actual {int(rollouts[wrong[0]])}")
     return None
 
 
@@ -401,12 +420,17 @@ def judge_known_steps(args, result, expected, services):
     for t in range(args["iterations"]):
         step = history[t] + args["learning_rate"] * central_difference(g, history[t], args["fd_step"])
         if not _close(history[t + 1], step, 1e-9, 1e-9):
+            summary = difference_words(history[t + 1], step, UPDATE_TOLERANCE, args,
+                                       lambda _, index: f"theta[{t + 1}][{index[0]}]")[2]
             return Verdict(False, f"theta[{t + 1}] = {show(step)} (step fd_step = {show(args['fd_step'])})",
                            f"theta[{t + 1}] = {show(history[t + 1])}",
-                           rule=_other_step(result["records"]["evaluation_params"], history[t], args["fd_step"]))
+                           rule=_other_step(result["records"]["evaluation_params"], history[t], args["fd_step"]),
+                           summary=summary)
         if not _close(rewards[t + 1], g(history[t + 1]), 1e-9, 1e-9):
             return Verdict(False, f"rewards[{t + 1}] = g(theta[{t + 1}]) = {show(g(history[t + 1]))}, the reward "
-                                  "after the update", f"rewards[{t + 1}] = {show(rewards[t + 1])}")
+                                  "after the update", f"rewards[{t + 1}] = {show(rewards[t + 1])}",
+                           summary=f"at rewards[{t + 1}]: expected g(theta[{t + 1}]) = {show(g(history[t + 1]))}, "
+                                   f"actual {show(rewards[t + 1])}")
     if not _close(values["final_params"], history[-1], 0, 0):
         return Verdict(False, f"the returned policy has theta[{args['iterations']}]", show(values["final_params"]))
     return Verdict(True)
@@ -419,7 +443,9 @@ def judge_known_rewards(args, result, expected, services):
         return failed
     g = training_objective(args["objective"])
     wanted = np.array([g(theta) for theta in values["params_history"]])
-    return Verdict(_close(values["rewards"], wanted, 1e-9, 1e-9), show(wanted), show(values["rewards"]))
+    passed, _, summary = difference_words(values["rewards"], wanted, UPDATE_TOLERANCE, args,
+                                          lambda _, index: f"rewards[{index[0]}]")
+    return Verdict(passed, show(wanted), show(values["rewards"]), summary=summary)
 
 
 def make_real_training(rng, variant):
@@ -498,7 +524,8 @@ def judge_real_rewards(args, result, expected, services):
         after = [index for index in _at(points, history[t]).tolist() if index > latest and scores[index] == rewards[t]]
         if not after:
             return Verdict(False, want, f"rewards[{t}] = {show(rewards[t])} is no evaluation of theta[{t}] made after "
-                                        "its update")
+                                        "its update", summary=f"at rewards[{t}]: expected eval_params of theta[{t}] after "
+                                                              f"update {t}, actual {show(rewards[t])}, no such evaluation")
     return Verdict(True)
 
 
@@ -510,24 +537,31 @@ def _update_off(args, history, t, i, pair):
     where = f"theta[{t - 1}] + h e_{i} and theta[{t - 1}] - h e_{i} (h = fd_step = {show(h)})"
     if pair is None:
         return Verdict(False, f"theta[{t}][{i}] from equation (4) with eval_params at {where}, both with one seed",
-                       f"theta[{t}][{i}] = {show(actual)}, and eval_params was not called at both with one seed")
+                       f"theta[{t}][{i}] = {show(actual)}, and eval_params was not called at both with one seed",
+                       summary=f"at theta[{t}][{i}]: expected an update from eval_params at theta[{t - 1}] +- h e_{i}, "
+                               "actual: no such pair of evaluations with one seed")
     wanted = before + rate * (pair[2] - pair[3]) / (2.0 * h)
     expected = (f"theta[{t}][{i}] = theta[{t - 1}][{i}] + learning_rate * (g+ - g-) / (2 h) = {show(before)} + "
                 f"{show(rate)} * ({show(pair[2])} - {show(pair[3])}) / {show(2.0 * h)} = {show(wanted)}, "
                 f"with g+ and g- your eval_params at {where}")
-    _, difference = difference_words(actual, wanted, UPDATE_TOLERANCE, args, lambda *_: f"theta[{t}][{i}], update {t}")
-    return Verdict(False, expected, f"theta[{t}][{i}] = {show(actual)}", difference, UPDATE_TOLERANCE.words())
+    _, difference, summary = difference_words(actual, wanted, UPDATE_TOLERANCE, args,
+                                              lambda *_: f"theta[{t}][{i}] in update {t}")
+    return Verdict(False, expected, f"theta[{t}][{i}] = {show(actual)}", difference, UPDATE_TOLERANCE.words(),
+                   summary=summary)
 
 
 TODO_1_3_2 = (
-    Behaviour("1.3.2", "equation-4", "on a known smooth objective g standing in for eval_params (with a quartic "
+    Behaviour("1.3.2", "equation-4", "theta += learning_rate * central-difference gradient of g with step fd_step, every iteration",
+              "on a known smooth objective g standing in for eval_params (with a quartic "
               "term, so the step matters), every iteration evaluates g with num_rollouts_per_eval rollouts, takes "
               "the step of equation (4), theta <- theta + learning_rate * (central-difference gradient of g with "
               "step fd_step), and records g of the new parameters", "train_known", make_known_training,
               judge_known_steps, value=True),
-    Behaviour("1.3.2", "records-reward", "on the same objective, rewards[t] is g of the parameters after update t",
+    Behaviour("1.3.2", "records-reward", "rewards[t] is g of the parameters after update t",
+              "on the same objective, rewards[t] is g of the parameters after update t",
               "train_known", make_known_training, judge_known_rewards, judged_on="equation-4", value=True),
-    Behaviour("1.3.2", "real-run", "in a short real CartPole run, every update is equation (4) with central "
+    Behaviour("1.3.2", "real-run", "in a real run, every update is equation (4) from your own eval_params calls",
+              "in a short real CartPole run, every update is equation (4) with central "
               "differences of step fd_step from eval_params calls with num_rollouts_per_eval episodes, and "
               "rewards[t] is eval_params of the parameters after update t (on the grader's records of every "
               "evaluation)", "train_real", make_real_training, judge_real_rewards, visible_count=1, value=True),
@@ -579,7 +613,10 @@ def judge_learning_rate(args, result, expected, services):
     actual = f"LEARNING_RATE = {show(value)}: rewards {show(run['rewards'], 25)}; " + \
         (f"converged at iteration {at}" if at is not None else "never converged")
     passed = at is not None and at <= deadline
-    return Verdict(passed, want, actual, rule="" if passed else _learning_rate_rule(run["rewards"], top, at))
+    summary = (f"expected convergence within {deadline} iterations, actual: LEARNING_RATE = {show(value)} "
+               + (f"converges at iteration {at}" if at is not None else f"never converges (rewards up to {show(max(run['rewards']))})"))
+    return Verdict(passed, want, actual, rule="" if passed else _learning_rate_rule(run["rewards"], top, at),
+                   summary=summary)
 
 
 def _learning_rate_rule(rewards, top, at):
@@ -593,7 +630,8 @@ def _learning_rate_rule(rewards, top, at):
 
 
 TODO_1_3_3 = (
-    Behaviour("1.3.3", "converges", "with your LEARNING_RATE, the notebook's training run (settings.TRAINING_SEED, "
+    Behaviour("1.3.3", "converges", "the notebook's training run converges in time with your LEARNING_RATE",
+              "with your LEARNING_RATE, the notebook's training run (settings.TRAINING_SEED, "
               f"from zeros; the note says whose training code it ran) reaches reward {facts.MAX_EPISODE_STEPS} within "
               f"{facts.settings.CONVERGENCE_DEADLINE} iterations and "
               "stays there", "settings_value", make_learning_rate, judge_learning_rate, visible_count=1,

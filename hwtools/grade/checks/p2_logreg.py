@@ -56,7 +56,8 @@ def _gradient_entry(args, index):
 
 
 TODO_2_1_1 = (
-    Behaviour("2.1.1", "gradient", "log_likelihood_gradient equals the summed gradient of equation (7), also "
+    Behaviour("2.1.1", "gradient", "the summed gradient of equation (7)",
+              "log_likelihood_gradient equals the summed gradient of equation (7), also "
               "where scores are in the hundreds (shown for the grader of the derivation; no automatic points)",
               "ll_gradient", make_ll_gradient, exact("gradient", FORMULA_TOLERANCE, _gradient_entry), exact=True),
 )
@@ -117,14 +118,17 @@ def make_sigmoid_precision(rng, variant):
 
 
 TODO_2_2_1 = (
-    Behaviour("2.2.1", "values", "sigma(z) = 1 / (1 + e^(-z)) for every entry of a row of numbers from -1000 to "
+    Behaviour("2.2.1", "values", "sigma(z) = 1 / (1 + e^(-z)) from z = -1000 to 1000, never NaN",
+              "sigma(z) = 1 / (1 + e^(-z)) for every entry of a row of numbers from -1000 to "
               "1000: 0, +-1, moderate values and far tails, where the values are 0 and 1 and never NaN (warnings are "
               "not failures)", "sigmoid", make_sigmoid_values, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry),
               visible_count=3, exact=True, value=True),
-    Behaviour("2.2.1", "any-shape", "the same for a single number and for arrays of 2 and 3 axes: values shaped "
+    Behaviour("2.2.1", "any-shape", "sigma of a single number and of 2- and 3-axis arrays, shaped like z",
+              "the same for a single number and for arrays of 2 and 3 axes: values shaped "
               "like z", "sigmoid", make_sigmoid_shapes, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry),
               visible_count=3, exact=True),
-    Behaviour("2.2.1", "precision", "float64 precision where sigma is close to 0 or 1 (20 < |z| <= 50): "
+    Behaviour("2.2.1", "precision", "float64 precision near 0 and 1: sigma(-24.4) = 2.5e-11, not 0",
+              "float64 precision where sigma is close to 0 or 1 (20 < |z| <= 50): "
               "sigma(-24.4) = 2.5e-11, not 0, and sigma(24.4) = 1 - 2.5e-11", "sigmoid", make_sigmoid_precision,
               exact("values", SIGMOID_PRECISION, _sigmoid_entry), exact=True),
 )
@@ -162,14 +166,16 @@ def make_predict_prob(rng, variant, zero_bias=False):
 
 
 def _sample_row(args, index):
-    return f"row {index[0]} of X, x~ = [{show(np.asarray(args['X'])[index[0]])[1:-1]}, 1]"
+    return f"row {index[0]} of X: x~ = [{show(np.asarray(args['X'])[index[0]])[1:-1]}, 1]"
 
 
 TODO_2_2_2 = (
-    Behaviour("2.2.2", "with-bias", "predict_prob gives sigma(w~ . [x, 1]) for each row: the constant 1 feature "
+    Behaviour("2.2.2", "with-bias", "sigma(w~ . [x, 1]) for each row: the 1 appended, the bias weight last",
+              "predict_prob gives sigma(w~ . [x, 1]) for each row: the constant 1 feature "
               "appended, the bias weight last; also for scores in the hundreds", "predict_prob", make_predict_prob,
               exact("probabilities", FORMULA_TOLERANCE, _sample_row), visible_count=3, exact=True, value=True),
-    Behaviour("2.2.2", "zero-bias", "with a zero bias weight, predict_prob gives sigma(w . x) for each row",
+    Behaviour("2.2.2", "zero-bias", "with a zero bias weight, sigma(w . x) for each row",
+              "with a zero bias weight, predict_prob gives sigma(w . x) for each row",
               "predict_prob", lambda rng, variant: make_predict_prob(rng, variant, zero_bias=True),
               exact("probabilities", FORMULA_TOLERANCE, _sample_row), exact=True, value=True),
 )
@@ -202,13 +208,16 @@ def _step_weight(args, index):
 
 
 TODO_2_2_3 = (
-    Behaviour("2.2.3", "from-zero", "one step of equation (8) from zero weights: w~ += learning_rate * "
+    Behaviour("2.2.3", "from-zero", "one step of equation (8) from zero weights, with the summed gradient",
+              "one step of equation (8) from zero weights: w~ += learning_rate * "
               "sum_i (y_i - sigma(w~ . x~_i)) x~_i, the summed gradient", "gradient_step", make_step,
               exact("weights", FORMULA_TOLERANCE, _step_weight), exact=True, value=True),
-    Behaviour("2.2.3", "from-weights", "one step of equation (8) from non-zero weights, also where scores are in "
+    Behaviour("2.2.3", "from-weights", "one step of equation (8) from non-zero weights",
+              "one step of equation (8) from non-zero weights, also where scores are in "
               "the hundreds", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random"),
               exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=3, exact=True, value=True),
-    Behaviour("2.2.3", "two-steps", "two steps in a row: the second starts from the weights the first left in "
+    Behaviour("2.2.3", "two-steps", "two steps in a row, the second from where the first left self.weights",
+              "two steps in a row: the second starts from the weights the first left in "
               "self.weights", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random", steps=2),
               exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=1, exact=True, value=True),
 )
@@ -242,10 +251,12 @@ def _class_weight(args, index):
 
 
 TODO_2_3_1 = (
-    Behaviour("2.3.1", "one-iteration", "one iteration of fit from zero weights: classifier c takes one step of "
+    Behaviour("2.3.1", "one-iteration", "one iteration from zero weights: one step per classifier on labels (y == c)",
+              "one iteration of fit from zero weights: classifier c takes one step of "
               "equation (8) on its one-vs-rest labels (1 for class c, 0 for every other class)", "one_vs_rest",
               make_one_vs_rest, exact("weights", FORMULA_TOLERANCE, _class_weight), exact=True, value=True),
-    Behaviour("2.3.1", "iterations", "2 to 4 iterations of fit, from zero weights and from the weights the "
+    Behaviour("2.3.1", "iterations", "2 to 4 iterations: exactly one step per classifier in each, from where it was",
+              "2 to 4 iterations of fit, from zero weights and from the weights the "
               "classifiers already have: in every iteration each classifier takes exactly one step, on its own "
               "labels, from where the last one left it", "one_vs_rest", make_iterations,
               exact("weights", FORMULA_TOLERANCE, _class_weight), visible_count=2, exact=True, value=True),

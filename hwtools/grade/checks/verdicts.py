@@ -1,7 +1,7 @@
 """How a check's answer is judged and shown: the verdict of one input, tolerances, and the words of a difference.
 
 ``exact(name, tolerance, locate)`` makes a judge that compares value ``name`` with the
-reference's; ``difference_words`` is the one wording of where two arrays of numbers differ (the
+reference's; ``difference_words`` is the one wording of where two arrays of numbers differ most (the
 student's preview, the instructor's grade, the class feedback and Gradescope all show it);
 ``show`` writes a value short for feedback. Standard library and numpy only.
 """
@@ -16,8 +16,10 @@ import numpy as np
 @dataclass(frozen=True)
 class Verdict:
     """What one input gave: passed or not, the expected and the actual value in short, and for an
-    answer of numbers, where they first differ (``difference``, from ``difference_words``) and what
-    counts as equal (``tolerance``, ``Tolerance.words``)."""
+    answer of numbers, where they differ most (``difference``, from ``difference_words``) and what
+    counts as equal (``tolerance``, ``Tolerance.words``). ``summary``: what is wrong in one clause,
+    expected against actual where they differ most ("at coordinate 2: expected 1.5, actual 3"), the
+    first line of every report of a failure (``feedback.first_lines``)."""
 
     passed: bool
     expected: str = ""
@@ -25,6 +27,7 @@ class Verdict:
     difference: str = ""
     tolerance: str = ""
     rule: str = ""  # a known mistake the judge sees by rule (``mistakes.py``: a wrong solution's "# rule:")
+    summary: str = ""
 
 
 def _number_text(number, digits=6):
@@ -119,35 +122,46 @@ def same_numbers(actual, expected):
 
 
 def difference_words(actual, expected, tolerance=EXACTLY, args=None, locate=None):
-    """(passed, words): whether ``actual`` equals ``expected`` within ``tolerance`` (every entry
-    finite), and if not, where they first differ, in words: the index (with what ``locate(args,
-    index)`` says about that entry's input), expected and actual with enough digits to tell them
-    apart, the difference, absolute and relative, and how many entries differ. This is the one
-    wording of a difference; every report (the preview, the grade, the class's feedback,
-    Gradescope) shows it as the failure's ``difference``."""
+    """(passed, words, summary): whether ``actual`` equals ``expected`` within ``tolerance`` (every
+    entry finite), and if not, where they differ most (the entry farthest outside the tolerance, a
+    NaN or infinity first), in words: the index (with what ``locate(args, index)`` says about that
+    entry's input: "coordinate 2: x[2] = ...", whose part before ": " names the entry in short),
+    expected and actual with enough digits to tell them apart, the difference, absolute and
+    relative, and how many entries differ; ``summary`` is the same in one clause ("at coordinate 2:
+    expected 1.5, actual 3"). This is the one wording of a difference; every report (the preview,
+    the grade, the class's feedback, Gradescope) shows it."""
     arranged, wrong_shape = same_numbers(actual, expected)
     if wrong_shape:
-        return False, f"the answer is {wrong_shape}"
+        return False, f"the answer is {wrong_shape}", f"the answer is {wrong_shape}"
     actual = np.asarray(arranged, dtype=np.float64)
     expected = np.asarray(expected, dtype=np.float64)
-    with np.errstate(invalid="ignore", over="ignore"):
-        bad = ~np.isfinite(actual) | ~(np.abs(actual - expected) <= tolerance.limits(expected, args))
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        limits = tolerance.limits(expected, args)
+        gap = np.abs(actual - expected)
+        bad = ~np.isfinite(actual) | ~(gap <= limits)
+        excess = np.where(np.isfinite(actual), gap / np.maximum(limits, np.finfo(np.float64).tiny), np.inf)
     if not bad.any():
-        return True, ""
-    index = tuple(int(i) for i in np.unravel_index(int(np.flatnonzero(bad.ravel())[0]), expected.shape))
+        return True, "", ""
+    flat = int(np.argmax(np.where(bad.ravel(), excess.ravel(), -1.0)))
+    index = tuple(int(i) for i in np.unravel_index(flat, expected.shape))
     want, got = float(expected[index]), float(actual[index])
     context = locate(args, index) if locate is not None and args is not None else ""
-    head = f"first difference at index [{', '.join(map(str, index))}]" if index else "the value differs"
+    where = f"index [{', '.join(map(str, index))}]" if index else ""
+    head = (f"differs most at {where}" if expected.size > 1 else f"differs at {where}") if where else "the value differs"
     head += f" ({context})" if context else ""
     want_text, got_text = tell_apart(want, got) if np.isfinite(got) else (tell_apart(want, want)[0], str(got))
     words = f"{head}: expected {want_text}, actual {got_text}"
     if np.isfinite(got) and not (tolerance == EXACTLY and want.is_integer() and got.is_integer()):
-        gap = abs(got - want)
-        words += f"; difference {gap:.3g}, " + (f"relative difference {gap / abs(want):.3g}" if want != 0 else
-                                                 "relative difference undefined (the expected value is 0)")
+        words += f"; difference {abs(got - want):.3g}, " + (f"relative difference {abs(got - want) / abs(want):.3g}"
+                                                          if want != 0 else
+                                                          "relative difference undefined (the expected value is 0)")
     if expected.size > 1:
         words += f"; {int(bad.sum())} of {expected.size} entries differ"
-    return False, words
+    short = context.split(": ", 1)[0] if context else where
+    summary = (f"at {short}: " if short else "") + f"expected {want_text}, actual {got_text}"
+    if expected.size > 1:
+        summary += f" ({int(bad.sum())} of {expected.size} differ)"
+    return False, words, summary
 
 
 def _close(actual, expected, rtol, atol):
@@ -164,8 +178,8 @@ def exact(name, tolerance=EXACTLY, locate=None):
         if result["status"] != "ok":
             return Verdict(False, show(want), result["error"])
         actual = result["values"][name]
-        passed, words = difference_words(actual, want, tolerance, args, locate)
-        return Verdict(passed, show(want), show(actual), words, "" if passed else tolerance.words())
+        passed, words, summary = difference_words(actual, want, tolerance, args, locate)
+        return Verdict(passed, show(want), show(actual), words, "" if passed else tolerance.words(), summary=summary)
 
     judge.tolerance = tolerance
     return judge

@@ -40,6 +40,11 @@ def todo_markdown(entry, visible_only=False):
     if visible_only:
         entry = entry if entry.get("visible_only") else visible_view(entry)
     lines = []
+    verdict = "fails" if visible_only else (f"earns {points(entry['auto_earned'])} of {points(entry['auto_possible'])} points"
+                                            if entry["auto_possible"] else "(graded by hand; this check is for the grader) fails")
+    first, fields = failure_words(entry, verdict)  # the same words as every other report: what is wrong, first
+    if first:
+        lines += [_fence("\n".join(first)), ""]
     if not visible_only and entry["auto_possible"]:
         lines.append(f"**{points(entry['auto_earned'])} of {points(entry['auto_possible'])} automatic point(s)** "
                      f"({entry['status']})")
@@ -58,12 +63,10 @@ def todo_markdown(entry, visible_only=False):
         where = f"; failed on a {check['failed_on']} input" if check["failed_on"] else ""
         lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}, {points(check['points'])} pt: "
                      f"{check['check']} ({inputs} input(s){where})")
-    failure = entry["first_failure"]
-    if failure:
-        headline, fields = failure_words(failure)  # the same words as every other report
-        lines += ["", headline]
-        for name, text in fields:
-            lines += ["", f"{name}:", "", _fence(text)]
+    if fields:
+        lines += ["", "The first failing check:"]
+    for name, text in fields:
+        lines += ["", f"{name}:", "", _fence(text)]
     if entry["notes"]:
         lines.append("")
         lines += [f"- note: {md_escape(note)}" for note in entry["notes"]]
