@@ -18,9 +18,10 @@ import numpy as np
 
 from hwtools import facts
 from hwtools.grade.checks.behaviour import Behaviour
-from hwtools.grade.checks.verdicts import EXACTLY, Tolerance, Verdict, _close, _number_text, difference_words, exact, show
+from hwtools.grade.checks.verdicts import (EXACTLY, Tolerance, Verdict, _close, _number_text, close_to, difference_words,
+                                          exact, show)
 from hwtools.grade.episodes import OWN_LOOP
-from hwtools.grade.in_sandbox.probes import training_objective
+from hwtools.grade.in_sandbox.probes import known_function, training_objective
 
 REBUILT = {}  # probe: (what the rebuilding line unpacks, what to call then); see checks.rebuild_line
 
@@ -45,27 +46,43 @@ def _integer_rows(rng, want):
     return rows
 
 
-def _near_boundary_rows(rng, count):
-    """Rows of random parameters and states whose score params . obs is within 1e-4 to 3e-3 of 0,
-    half on each side: far from any float rounding (1e-16), near enough that an observation (or
-    parameters) rounded to 2 decimals, or any other change of the inputs, takes the other side."""
+ROUNDED = (2, 3, 4)  # decimals an observation rounded to takes a score near 0 to the other side on every input
+
+
+def _near_boundary_rows(rng, count, low=1e-4, high=3e-3):
+    """Rows of random parameters and states whose score params . obs is within ``low`` to ``high`` of 0,
+    half on each side: far from any float rounding (1e-16; float32 observations move a score by 1e-6 at
+    most here), near enough that an observation (or parameters) rounded, or any other change of the
+    inputs, takes the other side."""
     rows = []
     for k in range(count):
         params, obs = rng.normal(size=4), rng.normal(size=4) * np.array([1.0, 1.0, 0.1, 1.0])
-        score = float(rng.uniform(1e-4, 3e-3)) * (1.0 if k % 2 else -1.0)
+        score = float(rng.uniform(low, high)) * (1.0 if k % 2 else -1.0)
         obs = obs + (score - params @ obs) / (params @ params) * params
         rows.append((params, obs))
     return rows
 
 
+def _rounding_shows(rng):
+    """Near-boundary rows (4 within 3e-3 of 0, 4 within 2e-4) drawn until, for each number of decimals in
+    ROUNDED, an observation rounded to it gives at least one of them the other action."""
+    while True:
+        rows = _near_boundary_rows(rng, 4) + _near_boundary_rows(rng, 4, 2e-5, 2e-4)
+        params, obs = (np.array(part) for part in zip(*rows))
+        right = np.einsum("ij,ij->i", params, obs) < 0
+        if all(np.any((np.einsum("ij,ij->i", params, np.round(obs, d)) < 0) != right) for d in ROUNDED):
+            return rows
+
+
 def make_policy_states(rng, variant):
     """Random parameters and states (pole angles as small as the pole's), and at random places among
     them four scores of exactly 0 (the tie of equation (1): action 0), two just above and below, and
-    four random ones within 3e-3 of 0 (half on each side)."""
+    eight random ones within 3e-3 of 0, four of them within 2e-4 (half on each side), on which an
+    observation rounded to 2, 3 or 4 decimals takes the other side (``_rounding_shows``)."""
     count = 30
     params = rng.normal(size=(count, 4))
     obs = rng.normal(size=(count, 4)) * np.array([1.0, 1.0, 0.1, 1.0])
-    rows = [(p, o) for p, o in zip(params, obs)] + _integer_rows(rng, {0: 4, 1: 2, -1: 2}) + _near_boundary_rows(rng, 4)
+    rows = [(p, o) for p, o in zip(params, obs)] + _integer_rows(rng, {0: 4, 1: 2, -1: 2}) + _rounding_shows(rng)
     order = rng.permutation(len(rows))
     return {"params": np.array([rows[i][0] for i in order]), "obs": np.array([rows[i][1] for i in order])}
 
@@ -74,6 +91,14 @@ def _policy_row(args, index):
     (row,) = index
     params, obs = np.asarray(args["params"][row]), np.asarray(args["obs"][row])
     return f"row {row} (params . obs = {_number_text(params @ obs)}): params {show(params)}, obs {show(obs)}"
+
+
+def _rounds_observation(args, actual, expected, tolerance):
+    """"rounds_observation" (a known mistake) if the actions are equation (1) on the observation rounded to
+    some number of decimals (0 to 8), else ""."""
+    params, obs = np.asarray(args["params"], dtype=np.float64), np.asarray(args["obs"], dtype=np.float64)
+    rounded = (np.einsum("ij,ij->i", params, np.round(obs, decimals)) < 0 for decimals in range(9))
+    return "rounds_observation" if any(np.array_equal(actual, actions) for actions in rounded) else ""
 
 
 ACTION_KINDS = {1: "a numpy bool", 2: "a float", 3: "an array", 4: "something else"}  # the worker's codes
@@ -101,7 +126,7 @@ TODO_1_1_1 = (
               "policy(obs) is 1 exactly where params . obs < 0, else 0 (equation (1)): on "
               "random parameters and states, and on scores of exactly 0 (the tie: action 0, the < is strict) and "
               "just above and below 0, mixed in among them", "policy_choices", make_policy_states,
-              exact("actions", EXACTLY, _policy_row), exact=True, value=True),
+              exact("actions", EXACTLY, _policy_row, rule=_rounds_observation), exact=True, value=True),
     Behaviour("1.1.1", "env-action", "each action one env.step takes: the int 0 or 1",
               "the right actions, each one env.step takes: the int 0 or 1 (a Python bool "
               "or a numpy integer works too; a float or a numpy bool does not)", "policy_choices", make_policy_states,
@@ -159,6 +184,58 @@ FD_TOLERANCE = Tolerance(1e-4, 1e-4, "the right formula in float32 is off by at 
                                      "a wrong one by 5e-3 * (|expected| + 1) or more")
 
 
+def _central(f, x, steps):
+    """Equation (3) at ``x`` with step ``steps[i]`` in coordinate i (the grader's own, for the rules below)."""
+    out = np.empty(len(x))
+    for i, step in enumerate(steps):
+        move = np.zeros(len(x))
+        move[i] = step
+        out[i] = (f(x + move) - f(x - move)) / (2.0 * step)
+    return out
+
+
+def _step_sizes(f, x, i, value):
+    """The steps s > 0 (from 1e-8 to 1e3) with which equation (3) in coordinate i gives ``value``: the
+    sign changes of a log-spaced scan, each narrowed by bisection."""
+    def gap(s):
+        return _central(f, x, [s if j == i else 1.0 for j in range(len(x))])[i] - value
+
+    grid = np.geomspace(1e-8, 1e3, 300)
+    gaps = np.array([gap(s) for s in grid])
+    roots = []
+    for k in np.flatnonzero(np.sign(gaps[:-1]) * np.sign(gaps[1:]) <= 0)[:8]:
+        low, high = grid[k], grid[k + 1]
+        for _ in range(60):
+            middle = np.sqrt(low * high)
+            low, high = (middle, high) if np.sign(gap(middle)) == np.sign(gaps[k]) else (low, middle)
+        roots.append(float(np.sqrt(low * high)))
+    return roots
+
+
+def _finite_diff_rule(args, actual, expected, tolerance):
+    """The known mistake a wrong gradient is, whatever its constant, or "": "moves_every_coordinate"
+    (f(x + h) - f(x - h), or f(x + h_i) - f(x - h_i), over 2 h_i: every coordinate moved at once);
+    "scaled_steps" (equation (3) with steps k h_i, one k != 1 for every coordinate: h_i / 2, 10 h_i);
+    "one_step" (equation (3) with one step s for every coordinate where the h_i differ: h[0], 1e-3).
+    Where every h_i is the same, a step of another size is both of the last two and neither is named."""
+    f, x = known_function(args["f"]), np.atleast_1d(np.asarray(args["x"], dtype=np.float64))
+    h = np.broadcast_to(np.asarray(args["h"], dtype=np.float64), x.shape).astype(np.float64)
+    actual = actual.reshape(x.shape)
+    for move in (lambda i: h, lambda i: np.full(len(x), h[i])):
+        every = np.array([(f(x + move(i)) - f(x - move(i))) / (2.0 * h[i]) for i in range(len(x))])
+        if close_to(actual, every, tolerance):
+            return "moves_every_coordinate"
+    if len(x) < 2 or np.allclose(h, h[0], rtol=1e-12, atol=0.0):
+        return ""
+    i = int(np.argmax(np.abs(actual - _central(f, x, h))))  # the coordinate that tells steps apart best
+    roots = _step_sizes(f, x, i, actual[i])
+    if any(close_to(actual, _central(f, x, np.full(len(x), s)), tolerance) for s in roots):
+        return "one_step"  # first: steps so small that every size gives the derivative fit both
+    if any(close_to(actual, _central(f, x, h * (s / h[i])), tolerance) for s in roots):
+        return "scaled_steps"
+    return ""
+
+
 def _no_arithmetic(result):
     """What a gradient returned as a list or tuple breaks: 1.3.2's update (theta + learning_rate * gradient)."""
     form = int(result["values"]["form"])
@@ -173,12 +250,12 @@ TODO_1_2_1 = (
               "central differences, equation (3), with a different step h_i for each "
               "coordinate: only coordinate i moves, by +-h_i, and the difference is divided by 2 h_i; on functions "
               "where a forward difference, or a point other than x, is off (the answer: N numbers, shaped like x "
-              "or in a list)", "finite_diff", make_fd_steps, exact("gradient", FD_TOLERANCE, _coordinate),
+              "or in a list)", "finite_diff", make_fd_steps, exact("gradient", FD_TOLERANCE, _coordinate, _finite_diff_rule),
               exact=True, value=True, breaks_callers=_no_arithmetic),
     Behaviour("1.2.1", "one-step", "equation (3) with one step h for every coordinate, also for a single number x",
               "central differences with one step h for every coordinate (h a number or "
               "equal steps), also for a single number x (a number or one number in a list or array)",
-              "finite_diff", make_fd_uniform, exact("gradient", FD_TOLERANCE, _coordinate), visible_count=3,
+              "finite_diff", make_fd_uniform, exact("gradient", FD_TOLERANCE, _coordinate, _finite_diff_rule), visible_count=3,
               exact=True),
 )
 REBUILT["finite_diff"] = ("f, x, h", "scalar_finite_diff(f, x, h)")

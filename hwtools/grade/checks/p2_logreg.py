@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from hwtools.grade.checks.behaviour import Behaviour
-from hwtools.grade.checks.verdicts import Tolerance, _number_text, exact, show
+from hwtools.grade.checks.verdicts import Tolerance, _number_text, close_to, exact, show
 
 REBUILT = {}  # probe: (what the rebuilding line unpacks, what to call then); see checks.rebuild_line
 
@@ -90,6 +90,19 @@ def _sigmoid_entry(args, index):
     return f"z{list(index) if index else ''} = {_number_text(z[index] if index else z)}"
 
 
+def _cuts_off(args, actual, expected, tolerance):
+    """"cuts_off" (a known mistake) if the values are exactly 0 and 1 from some |z| = c on (c below 36, where
+    sigma itself is not yet 1 in float64) and sigma below it, whatever c is, else ""."""
+    z = np.asarray(args["z"], dtype=np.float64).reshape(actual.shape)
+    off = ~(np.abs(actual - expected) <= tolerance.limits(expected, args))
+    saturated = np.where(z > 0, actual == 1.0, actual == 0.0)
+    if not off.any() or not np.all(saturated[off]):
+        return ""
+    cut = float(np.min(np.abs(z[off])))
+    beyond = np.abs(z) >= cut
+    return "cuts_off" if cut < 36 and np.all(saturated[beyond]) and not np.any(off[~beyond]) else ""
+
+
 def make_sigmoid_values(rng, variant):
     """Rows of numbers from -1000 to 1000: 0 and +-1, moderate values, and far tails (where
     e^z overflows for z > 709 and e^-z for z < -709)."""
@@ -121,16 +134,16 @@ TODO_2_2_1 = (
     Behaviour("2.2.1", "values", "sigma(z) = 1 / (1 + e^(-z)) from z = -1000 to 1000, never NaN",
               "sigma(z) = 1 / (1 + e^(-z)) for every entry of a row of numbers from -1000 to "
               "1000: 0, +-1, moderate values and far tails, where the values are 0 and 1 and never NaN (warnings are "
-              "not failures)", "sigmoid", make_sigmoid_values, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry),
+              "not failures)", "sigmoid", make_sigmoid_values, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry, _cuts_off),
               visible_count=3, exact=True, value=True),
     Behaviour("2.2.1", "any-shape", "sigma of a single number and of 2- and 3-axis arrays, shaped like z",
               "the same for a single number and for arrays of 2 and 3 axes: values shaped "
-              "like z", "sigmoid", make_sigmoid_shapes, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry),
+              "like z", "sigmoid", make_sigmoid_shapes, exact("values", SIGMOID_TOLERANCE, _sigmoid_entry, _cuts_off),
               visible_count=3, exact=True),
     Behaviour("2.2.1", "precision", "float64 precision near 0 and 1: sigma(-24.4) = 2.5e-11, not 0",
               "float64 precision where sigma is close to 0 or 1 (20 < |z| <= 50): "
               "sigma(-24.4) = 2.5e-11, not 0, and sigma(24.4) = 1 - 2.5e-11", "sigmoid", make_sigmoid_precision,
-              exact("values", SIGMOID_PRECISION, _sigmoid_entry), exact=True),
+              exact("values", SIGMOID_PRECISION, _sigmoid_entry, _cuts_off), exact=True),
 )
 REBUILT["sigmoid"] = ("z", "sigmoid(z)")
 
@@ -199,6 +212,36 @@ def make_step(rng, variant, start="zero", steps=1):
             "learning_rate": float((0.05, 0.01, 0.02)[variant % 3]), "steps": steps}
 
 
+def _logistic(s):
+    with np.errstate(over="ignore", under="ignore"):
+        return np.where(s >= 0, 1.0 / (1.0 + np.exp(-np.abs(s))), np.exp(-np.abs(s)) / (1.0 + np.exp(-np.abs(s))))
+
+
+def _ascent_gradient(weights, X, y):
+    """The summed gradient of equation (7) at ``weights`` (the grader's own, for the rules below)."""
+    X_aug = np.hstack([X, np.ones((len(X), 1))])
+    return X_aug.T @ (np.asarray(y, dtype=np.float64) - _logistic(X_aug @ weights))
+
+
+def _other_rate(args, actual, expected, tolerance):
+    """"other_rate" (a known mistake) if every step is equation (8) with one rate r > 0 of another size than
+    learning_rate (none: r = 1; a number of one's own), whatever r is, else "". The mean gradient (r =
+    learning_rate / N) and a step down (r < 0) are mistakes of their own."""
+    X, y, rate = np.asarray(args["X"], dtype=np.float64), args["y"], float(args["learning_rate"])
+    weights = np.asarray(args["weights"], dtype=np.float64)
+    gradient = _ascent_gradient(weights, X, y)
+    if not np.all(np.isfinite(gradient)) or gradient @ gradient == 0:
+        return ""
+    r = float((actual[0] - weights) @ gradient / (gradient @ gradient))
+    if not r > 0 or any(np.isclose(r, other, rtol=1e-4) for other in (rate, rate / len(X))):
+        return ""
+    steps = []
+    for _ in range(len(actual)):
+        weights = weights + r * _ascent_gradient(weights, X, y)
+        steps.append(weights)
+    return "other_rate" if close_to(actual, np.array(steps), tolerance) else ""
+
+
 def _weight(args, j):
     return f"weight {j}" + (" (the bias)" if j == int(args["n_features"]) else "")
 
@@ -211,15 +254,15 @@ TODO_2_2_3 = (
     Behaviour("2.2.3", "from-zero", "one step of equation (8) from zero weights, with the summed gradient",
               "one step of equation (8) from zero weights: w~ += learning_rate * "
               "sum_i (y_i - sigma(w~ . x~_i)) x~_i, the summed gradient", "gradient_step", make_step,
-              exact("weights", FORMULA_TOLERANCE, _step_weight), exact=True, value=True),
+              exact("weights", FORMULA_TOLERANCE, _step_weight, _other_rate), exact=True, value=True),
     Behaviour("2.2.3", "from-weights", "one step of equation (8) from non-zero weights",
               "one step of equation (8) from non-zero weights, also where scores are in "
               "the hundreds", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random"),
-              exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=3, exact=True, value=True),
+              exact("weights", FORMULA_TOLERANCE, _step_weight, _other_rate), visible_count=3, exact=True, value=True),
     Behaviour("2.2.3", "two-steps", "two steps in a row, the second from where the first left self.weights",
               "two steps in a row: the second starts from the weights the first left in "
               "self.weights", "gradient_step", lambda rng, variant: make_step(rng, variant, start="random", steps=2),
-              exact("weights", FORMULA_TOLERANCE, _step_weight), visible_count=1, exact=True, value=True),
+              exact("weights", FORMULA_TOLERANCE, _step_weight, _other_rate), visible_count=1, exact=True, value=True),
 )
 REBUILT["gradient_step"] = ("model, X, y, learning_rate, steps", "model.gradient_ascent_step(X, y, learning_rate), steps times")
 
@@ -246,6 +289,24 @@ def make_iterations(rng, variant):
     return make_one_vs_rest(rng, variant, iterations=(3, 2, 4)[variant % 3], start=("zero", "given")[variant % 2])
 
 
+def _steps_per_class(args, actual, expected, tolerance):
+    """"other_steps" (a known mistake) if each iteration takes k steps per classifier, one k other than 1
+    (and other than n_iters: the two-class fit for n_iters steps inside the loop is a mistake of its
+    own), whatever k is, else ""."""
+    X, y, rate, n_iters = np.asarray(args["X"], dtype=np.float64), np.asarray(args["y"]), float(args["learning_rate"]), \
+        int(args["n_iters"])
+    start = np.asarray(args.get("initial_weights", np.zeros((int(args["n_classes"]), X.shape[1] + 1))), dtype=np.float64)
+    weights, found = start.copy(), None
+    for total in range(1, 6 * n_iters + 1):
+        weights = np.array([w + rate * _ascent_gradient(w, X, (y == c) * 1.0) for c, w in enumerate(weights)])
+        if close_to(actual, weights, tolerance):
+            found = total
+            break
+    if found is None or found % n_iters or found // n_iters in (1, n_iters):
+        return ""
+    return "other_steps"
+
+
 def _class_weight(args, index):
     return f"classifier {index[0]}, {_weight(args, index[1])}"
 
@@ -254,12 +315,12 @@ TODO_2_3_1 = (
     Behaviour("2.3.1", "one-iteration", "one iteration from zero weights: one step per classifier on labels (y == c)",
               "one iteration of fit from zero weights: classifier c takes one step of "
               "equation (8) on its one-vs-rest labels (1 for class c, 0 for every other class)", "one_vs_rest",
-              make_one_vs_rest, exact("weights", FORMULA_TOLERANCE, _class_weight), exact=True, value=True),
+              make_one_vs_rest, exact("weights", FORMULA_TOLERANCE, _class_weight, _steps_per_class), exact=True, value=True),
     Behaviour("2.3.1", "iterations", "2 to 4 iterations: exactly one step per classifier in each, from where it was",
               "2 to 4 iterations of fit, from zero weights and from the weights the "
               "classifiers already have: in every iteration each classifier takes exactly one step, on its own "
               "labels, from where the last one left it", "one_vs_rest", make_iterations,
-              exact("weights", FORMULA_TOLERANCE, _class_weight), visible_count=2, exact=True, value=True),
+              exact("weights", FORMULA_TOLERANCE, _class_weight, _steps_per_class), visible_count=2, exact=True, value=True),
 )
 REBUILT["one_vs_rest"] = ("model, X, y, learning_rate, n_iters", "model.fit(X, y, learning_rate, n_iters)")
 

@@ -170,8 +170,10 @@ def _close(actual, expected, rtol, atol):
         bool(np.allclose(actual, expected, rtol=rtol, atol=atol))
 
 
-def exact(name, tolerance=EXACTLY, locate=None):
-    """A judge: value ``name`` equals the reference's within ``tolerance`` (``difference_words``)."""
+def exact(name, tolerance=EXACTLY, locate=None, rule=None):
+    """A judge: value ``name`` equals the reference's within ``tolerance`` (``difference_words``).
+    ``rule(args, actual, expected)``: the known mistake a wrong answer shows whatever its constant
+    ("rounds_observation", ...; ``mistakes.py``), or "": asked only when the answer is wrong."""
 
     def judge(args, result, expected, services):
         want = expected[name]
@@ -179,8 +181,29 @@ def exact(name, tolerance=EXACTLY, locate=None):
             return Verdict(False, show(want), result["error"])
         actual = result["values"][name]
         passed, words, summary = difference_words(actual, want, tolerance, args, locate)
-        return Verdict(passed, show(want), show(actual), words, "" if passed else tolerance.words(), summary=summary)
+        seen = "" if passed or rule is None else _rule_of(rule, args, actual, want, tolerance)
+        return Verdict(passed, show(want), show(actual), words, "" if passed else tolerance.words(), seen, summary)
 
     judge.tolerance = tolerance
     return judge
 
+
+def _rule_of(rule, args, actual, expected, tolerance):
+    """What ``rule`` sees in a wrong answer of the right shape, or "" (an answer it cannot read is no mistake it knows)."""
+    arranged, wrong_shape = same_numbers(actual, expected)
+    if wrong_shape:
+        return ""
+    try:
+        with np.errstate(all="ignore"):
+            return rule(args, np.asarray(arranged, dtype=np.float64), np.asarray(expected, dtype=np.float64), tolerance)
+    except (ValueError, TypeError, FloatingPointError, OverflowError):
+        return ""
+
+
+def close_to(actual, wanted, tolerance, args=None):
+    """Every entry of ``actual`` within ``tolerance`` of ``wanted`` (finite), as the judges compare."""
+    actual, wanted = np.asarray(actual, dtype=np.float64), np.asarray(wanted, dtype=np.float64)
+    if actual.shape != wanted.shape:
+        return False
+    with np.errstate(invalid="ignore", over="ignore"):
+        return bool(np.all(np.isfinite(actual) & (np.abs(actual - wanted) <= tolerance.limits(wanted, args))))
