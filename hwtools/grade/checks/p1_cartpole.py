@@ -275,9 +275,64 @@ REBUILT["finite_diff"] = ("f, x, h", "scalar_finite_diff(f, x, h)")
 PLAYED = "through run_policy or a gym.make('CartPole-v1') environment"
 
 
+def episode_lengths(params, seeds):
+    """The steps of one episode of CartPoleLinearPolicy(params[k]) from ``reset(seed=seeds[k])`` for each k
+    (``params`` one row per seed, or one vector for all), up to the
+    episode cap (``facts.MAX_EPISODE_STEPS``): gymnasium's CartPole-v1 (its start states, constants and Euler
+    step; the policy sees the float32 observation), in numpy. Only to choose inputs that reach a regime:
+    the judges read the grader's records of the episodes played (``tests/grader/test_checks.py`` compares
+    it with gymnasium)."""
+    state = np.array([np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed)))).uniform(-0.05, 0.05, 4)
+                      for seed in seeds]).T
+    x, x_dot, theta, theta_dot = state
+    params = np.broadcast_to(np.asarray(params, dtype=np.float64), (len(seeds), 4))
+    cap = facts.MAX_EPISODE_STEPS
+    gravity, masspole, total_mass, length, force_mag, tau = 9.8, 0.1, 1.1, 0.5, 10.0, 0.02
+    steps, going = np.zeros(len(seeds), dtype=np.int64), np.ones(len(seeds), dtype=bool)
+    for _ in range(cap):
+        obs = np.array([x, x_dot, theta, theta_dot], dtype=np.float32).astype(np.float64)
+        force = np.where(np.einsum("kj,jk->k", params, obs) < 0, force_mag, -force_mag)
+        costheta, sintheta = np.cos(theta), np.sin(theta)
+        temp = (force + masspole * length * np.square(theta_dot) * sintheta) / total_mass
+        thetaacc = (gravity * sintheta - costheta * temp) / (length * (4.0 / 3.0 - masspole * np.square(costheta) / total_mass))
+        xacc = temp - masspole * length * thetaacc * costheta / total_mass
+        x, x_dot, theta, theta_dot = x + tau * x_dot, x_dot + tau * xacc, theta + tau * theta_dot, theta_dot + tau * thetaacc
+        steps += going
+        going &= (np.abs(x) <= 2.4) & (np.abs(theta) <= 12 * 2 * np.pi / 360)
+        if not going.any():
+            break
+    return steps
+
+
+SHORT_EPISODE = 100  # steps: the other episodes of the case whose episode reaches the cap end sooner
+# Parameters on the edge of balancing: from about half the start states an episode reaches the episode cap,
+# from the others it ends within SHORT_EPISODE steps (found by bisection between parameters
+# that always balance and ones that never do; tests/grader/test_checks.py keeps it true with gymnasium).
+ON_THE_EDGE = ((0.2262, -1.1718, -1.1735, -0.8225), (0.0084, -1.2424, -1.1693, -0.8743),
+               (-0.2396, -1.2359, -1.6123, -0.8697), (-0.0467, -1.3873, -1.3134, -0.9684),
+               (-0.0642, -1.2619, -1.4058, -0.8906), (-0.2153, -1.0495, -1.6746, -0.745),
+               (0.1042, -0.9974, -1.2005, -0.7006), (-0.0558, -1.1467, -1.182, -0.8006),
+               (-0.1522, -0.9293, -1.6689, -0.6676), (0.2453, -1.1222, -1.5239, -0.805),
+               (-0.0849, -1.0548, -1.0393, -0.7435), (0.0407, -1.0508, -1.2752, -0.7444))
+
+
 def make_eval_case(rng, variant):
-    return {"params": rng.uniform(-1.0, 1.0, 4) * np.array([0.3, 1.0, 1.0, 1.0]),
-            "num_rollouts": int((3, 4, 1, 6)[variant % 4]), "seed": int(rng.integers(0, 5_000))}
+    """Random parameters (episodes of about 10 steps), or (variant 1) parameters ``ON_THE_EDGE`` and a
+    seed such that among the case's episodes (seed + k) one reaches the episode cap and the others, the
+    first among them, end within SHORT_EPISODE steps, in the same call (each step of an episode played
+    in the code's own environment is a message: few steps keep such a run short)."""
+    rollouts, span = int((3, 4, 1, 6)[variant % 4]), 32  # seeds played at once
+    while variant == 1:
+        params = np.array(ON_THE_EDGE[int(rng.integers(len(ON_THE_EDGE)))])
+        base = int(rng.integers(0, 5_000))
+        lengths = episode_lengths(params, base + np.arange(span))
+        capped, short = lengths == facts.MAX_EPISODE_STEPS, lengths < SHORT_EPISODE
+        for first in range(span - rollouts + 1):
+            window = slice(first, first + rollouts)
+            if short[first] and capped[window].sum() == 1 and np.all(capped[window] | short[window]):
+                return {"params": params, "num_rollouts": rollouts, "seed": base + first}
+    return {"params": rng.uniform(-1.0, 1.0, 4) * np.array([0.3, 1.0, 1.0, 1.0]), "num_rollouts": rollouts,
+            "seed": int(rng.integers(0, 5_000))}
 
 
 def _eval_episodes(args, result):
@@ -301,14 +356,27 @@ def _first_call(args, result, want):
     if result["status"] != "ok":
         return None, Verdict(False, want, result["error"])
     episodes, problem = _eval_episodes(args, result)
-    if problem:  # the known mistake "one_episode": one episode per call where num_rollouts asks for more
-        one = args["num_rollouts"] > 1 and int(np.sum(result["records"]["episode_direct"])) == 2
+    if problem:
         played = int(np.sum(result["records"]["episode_direct"]))
         return None, Verdict(False, want, f"{problem}, returned {show(result['values']['value'])}",
-                             rule="one_episode" if one else "",
+                             rule=_too_few_rule(args, result, played),
                              summary=f"expected {2 * args['num_rollouts']} episodes in two calls with num_rollouts="
                                      f"{args['num_rollouts']}, actual {played} (returned {show(result['values']['value'])})")
     return {name: part[:args["num_rollouts"]] for name, part in episodes.items()}, None
+
+
+def _too_few_rule(args, result, played):
+    """The known mistake of a call that played too few episodes, seen in the grader's records, or "":
+    "stops_at_cap" (each call stops at the first episode that reaches the episode cap, after one or more
+    that did not) or "one_episode" (one episode per call, where num_rollouts asks for more)."""
+    count, half = args["num_rollouts"], played // 2
+    rewards = result["records"]["episode_rewards"][result["records"]["episode_direct"]]
+    if played % 2 or not 0 < half < count:
+        return ""
+    capped = rewards[:half] >= facts.MAX_EPISODE_STEPS
+    if half > 1 and capped[-1] and not capped[:-1].any():
+        return "stops_at_cap"
+    return "one_episode" if half == 1 and not capped[0] else ""
 
 
 def _follows(records, row, params):
@@ -418,12 +486,26 @@ REBUILT["eval_params"] = ("params, num_rollouts, seed", "eval_params(params, num
 
 
 def make_known_training(rng, variant):
-    basis = rng.normal(size=(4, 4))
-    return {"objective": {"A": basis @ basis.T / 8.0 + 0.5 * np.eye(4), "m": rng.normal(size=4),
-                          "q": rng.uniform(0.01, 0.05, size=4), "c": float(rng.uniform(100, 400))},
-            "iterations": int(2 + variant), "rollouts": int((2, 3)[variant % 2]),
-            "learning_rate": float((0.07, 0.12, 0.2)[variant % 3]), "fd_step": float((0.5, 0.25, 0.4)[variant % 3]),
-            "seed": int(rng.integers(0, 100)), "initial_params": rng.normal(size=4) * 0.5}
+    """A known objective (``probes.training_objective``) and a short run on it. Variant 1 reaches the
+    episode cap, as real rewards do: g is capped there, its first update takes g from below the cap to
+    it (every evaluation of the first gradient below it), and the run goes on at the cap."""
+    while True:
+        basis = rng.normal(size=(4, 4))
+        case = {"objective": {"A": basis @ basis.T / 8.0 + 0.5 * np.eye(4), "m": rng.normal(size=4),
+                              "q": rng.uniform(0.01, 0.05, size=4), "c": float(rng.uniform(100, 400))},
+                "iterations": int(2 + variant), "rollouts": int((2, 3)[variant % 2]),
+                "learning_rate": float((0.07, 0.12, 0.2)[variant % 3]), "fd_step": float((0.5, 0.25, 0.4)[variant % 3]),
+                "seed": int(rng.integers(0, 100)), "initial_params": rng.normal(size=4) * 0.5}
+        if variant != 1:
+            return case
+        g, theta, step = training_objective(case["objective"]), case["initial_params"], case["fd_step"]
+        around = max(g(theta + step * e) for e in np.vstack([np.eye(4), -np.eye(4)]))
+        after = g(theta + case["learning_rate"] * central_difference(g, theta, step))
+        if after > around + 1.0:  # the cap between them: the first update reaches it
+            cap = float(facts.MAX_EPISODE_STEPS)
+            case["objective"]["c"] += cap - float(rng.uniform(around, after - 0.5))
+            case["objective"]["cap"] = cap
+            return case
 
 
 def central_difference(g, theta, step):
@@ -446,8 +528,11 @@ def _training_run(args, result, want, shape_want=None):
         return None, Verdict(False, want, result["error"])
     wrong_shape = _training_shape(args, result["values"])
     if wrong_shape:
-        return None, Verdict(False, shape_want or want, wrong_shape, summary=f"expected {args['iterations']} updates "
-                             f"(params_history of shape ({args['iterations'] + 1}, 4)), actual {wrong_shape}")
+        rewards = np.asarray(result["values"]["rewards"])
+        early = rewards.ndim == 1 and 0 < len(rewards) < args["iterations"] + 1  # a loop left before its last update
+        return None, Verdict(False, shape_want or want, wrong_shape, rule="stops_early" if early else "",
+                             summary=f"expected {args['iterations']} updates (params_history of shape "
+                                     f"({args['iterations'] + 1}, 4)), actual {wrong_shape}")
     return result["values"], None
 
 

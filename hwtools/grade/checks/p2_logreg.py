@@ -202,8 +202,10 @@ REBUILT["predict_prob"] = ("model, X", "model.predict_prob(X)")
 
 
 def make_step(rng, variant, start="zero", steps=1):
+    """Random samples and labels; in variant 1 every label is 1 (a single class: y - sigma is never negative)."""
     features = int(rng.integers(3, 6))
     X, y = _two_class_data(rng, int(rng.integers(15, 30)), features)
+    y = np.ones_like(y) if variant == 1 else y
     weights = np.zeros(features + 1) if start == "zero" else rng.normal(size=features + 1) * 0.3
     if start != "zero" and variant == 2:  # far scores: y - sigma is 0 or +-1, never NaN
         weights = weights * 400.0
@@ -273,10 +275,13 @@ REBUILT["gradient_step"] = ("model, X, y, learning_rate, steps", "model.gradient
 # --------------------------------------------------------------------------------------------
 
 
-def make_one_vs_rest(rng, variant, iterations=1, start="zero"):
+def make_one_vs_rest(rng, variant, iterations=1, start="zero", absent=False):
+    """40 samples of 3 or 4 classes, each class present, or with ``absent`` the last class absent (its
+    classifier steps on labels that are all 0)."""
     features, classes = int(rng.integers(3, 5)), int((3, 4)[variant % 2])
     X = rng.normal(size=(40, features))
-    y = np.concatenate([np.arange(classes), rng.integers(0, classes, size=40 - classes)])
+    present = classes - 1 if absent else classes
+    y = np.concatenate([np.arange(present), rng.integers(0, present, size=40 - present)])
     case = {"n_features": features, "n_classes": classes, "X": X, "y": rng.permutation(y),
             "learning_rate": 0.05, "n_iters": iterations}
     if start != "zero":
@@ -285,8 +290,9 @@ def make_one_vs_rest(rng, variant, iterations=1, start="zero"):
 
 
 def make_iterations(rng, variant):
-    """2 to 4 iterations, from zero weights and from weights a fit before left."""
-    return make_one_vs_rest(rng, variant, iterations=(3, 2, 4)[variant % 3], start=("zero", "given")[variant % 2])
+    """2 to 4 iterations, from zero weights and from weights a fit before left; in variant 1 a class has no sample."""
+    return make_one_vs_rest(rng, variant, iterations=(3, 2, 4)[variant % 3], start=("zero", "given")[variant % 2],
+                            absent=variant == 1)
 
 
 def _steps_per_class(args, actual, expected, tolerance):

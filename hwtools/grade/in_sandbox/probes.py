@@ -69,16 +69,17 @@ def known_function(spec):
 
 def training_objective(spec):
     """g(theta) = c - (theta - m)^T A (theta - m) - sum_i q_i (theta_i - m_i)^4, a smooth stand-in for
-    the expected reward. With q = 0 central differences are exact for any step; with q > 0 they
-    depend on the step (for d^4: 4 d^3 + 4 d h^2), so a run that uses another step than fd_step shows."""
+    the expected reward, at most ``spec["cap"]`` where it has one (as rewards stop at the episode cap).
+    With q = 0 central differences are exact for any step; with q > 0 they depend on the step (for
+    d^4: 4 d^3 + 4 d h^2), so a run that uses another step than fd_step shows."""
     a = np.asarray(spec["A"], dtype=np.float64)
     m = np.asarray(spec["m"], dtype=np.float64)
     q = np.asarray(spec.get("q", np.zeros_like(m)), dtype=np.float64)
-    c = float(spec["c"])
+    c, cap = float(spec["c"]), float(spec.get("cap", np.inf))
 
     def g(theta):
         d = np.asarray(theta, dtype=np.float64).reshape(-1) - m
-        return float(c - d @ a @ d - np.sum(q * d**4))
+        return float(min(cap, c - d @ a @ d - np.sum(q * d**4)))
 
     return g
 
