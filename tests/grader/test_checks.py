@@ -316,6 +316,161 @@ def test_no_hidden_input_repeats_a_visible_one():
 
 
 # --------------------------------------------------------------------------------------------
+# The regimes the handout names, reached by visible and hidden inputs alike (issue 40.2; no sandbox)
+# --------------------------------------------------------------------------------------------
+
+
+def reaches(todo, key, regime, draws=4):
+    """(whether a visible input of behaviour ``key`` of ``todo`` reaches ``regime(args)``, whether a hidden
+    one does for each of ``draws`` submissions)."""
+    from hwtools.grade.grader import load_hidden_checks
+
+    hidden = load_hidden_checks(KIT)
+    visible = any(regime(args) for _, b, args in checks.case_set(todo).visible if b.key == key)
+    drawn = [any(regime(args) for _, b, args in checks.case_set(todo, hidden, f"draw {draw}").hidden if b.key == key)
+             for draw in range(draws)]
+    return visible, all(drawn)
+
+
+def test_the_makers_cartpole_is_gymnasiums():
+    """1.3.1's maker picks its seeds with its own CartPole (episode_lengths); it must play gymnasium's."""
+    from hwlib.machinery.episodes import play_batch
+
+    rng = np.random.default_rng(3)
+    rows = np.vstack([np.array(p1_cartpole.ON_THE_EDGE), rng.uniform(-1, 1, size=(12, 4))])
+    seeds = rng.integers(0, 10_000, size=len(rows))
+    assert np.array_equal(p1_cartpole.episode_lengths(rows, seeds), play_batch(rows, seeds))
+
+
+def test_1_3_1_inputs_reach_the_cap_and_end_early_in_the_same_call():
+    """An eval_params that stops at the first episode to reach the cap must be seen: in one call, the
+    first episode ends early and a later one reaches the cap, visible and hidden (played by gymnasium)."""
+    from hwlib.machinery.episodes import play_batch
+    from hwtools.facts import MAX_EPISODE_STEPS
+
+    def mixed(args):
+        seeds = args["seed"] + np.arange(args["num_rollouts"])
+        lengths = play_batch(np.tile(args["params"], (len(seeds), 1)), seeds)
+        return lengths[0] < MAX_EPISODE_STEPS and lengths.max() == MAX_EPISODE_STEPS
+
+    assert reaches("1.3.1", "mean-reward", mixed) == (True, True)
+
+
+def test_1_3_2_inputs_reach_the_cap_and_train_on_at_it():
+    """A training loop that stops once the reward reaches the cap must be seen: a known objective, capped
+    where rewards are, that the reference's run reaches before its last update, visible and hidden."""
+    from hwtools.facts import MAX_EPISODE_STEPS
+    from hwtools.grade.in_sandbox.probes import training_objective
+
+    def capped_early(args):
+        g, theta = training_objective(args["objective"]), np.asarray(args["initial_params"], dtype=np.float64)
+        rewards = [g(theta)]
+        for _ in range(args["iterations"]):
+            theta = theta + args["learning_rate"] * p1_cartpole.central_difference(g, theta, args["fd_step"])
+            rewards.append(g(theta))
+        return rewards[0] < MAX_EPISODE_STEPS and MAX_EPISODE_STEPS in rewards[:-1]
+
+    assert reaches("1.3.2", "equation-4", capped_early) == (True, True)
+
+
+@pytest.mark.parametrize("decimals", p1_cartpole.ROUNDED)
+def test_1_1_1_inputs_show_an_observation_rounded(decimals):
+    def flips(args):
+        params, obs = np.asarray(args["params"]), np.asarray(args["obs"])
+        return bool(np.any((np.einsum("ij,ij->i", params, np.round(obs, decimals)) < 0) !=
+                           (np.einsum("ij,ij->i", params, obs) < 0)))
+
+    assert reaches("1.1.1", "equation-1", flips) == (True, True)
+
+
+def test_2_2_3_and_2_3_1_inputs_reach_a_single_class_and_an_absent_one():
+    def single(args):
+        return np.unique(np.asarray(args["y"])).size == 1
+
+    def absent(args):
+        return np.unique(np.asarray(args["y"])).size < int(args["n_classes"])
+
+    assert reaches("2.2.3", "from-zero", single) == (True, True)
+    assert reaches("2.2.3", "from-weights", single) == (True, True)
+    assert reaches("2.3.1", "iterations", absent) == (True, True)
+
+
+def visible_args(behaviour_id, number=0):
+    return behaviour(behaviour_id).visible_cases()[number]
+
+
+def fd_answer(args, steps=None, every=None):
+    """Equation (3) on a 1.2.1 case with ``steps`` (default h), or f(x + d_i) - f(x - d_i) over 2 h_i with ``every(i)`` = d_i."""
+    from hwtools.grade.in_sandbox.probes import known_function
+
+    f, x = known_function(args["f"]), np.asarray(args["x"], dtype=np.float64)
+    h = np.broadcast_to(np.asarray(args["h"], dtype=np.float64), x.shape)
+    if every is not None:
+        return np.array([(f(x + every(h, i)) - f(x - every(h, i))) / (2 * h[i]) for i in range(len(x))])
+    return p1_cartpole._central(f, x, h if steps is None else steps(h))
+
+
+def ascent(args, rate, steps=1, start=None, labels=None):
+    """Weights after ``steps`` steps of equation (8) with ``rate`` (2.2.3's cases; 2.3.1's with ``labels``)."""
+    w = np.asarray(args["weights"] if start is None else start, dtype=np.float64)
+    out = []
+    for _ in range(steps):
+        w = w + rate * p2_logreg._ascent_gradient(w, np.asarray(args["X"]), args["y"] if labels is None else labels)
+        out.append(w)
+    return np.array(out)
+
+
+def one_vs_rest(args, per_iteration):
+    classes, X = int(args["n_classes"]), np.asarray(args["X"])
+    start = args.get("initial_weights", np.zeros((classes, X.shape[1] + 1)))
+    return np.array([ascent({"X": X, "weights": start[c]}, args["learning_rate"], per_iteration * args["n_iters"],
+                            labels=(np.asarray(args["y"]) == c) * 1.0)[-1] for c in range(classes)])
+
+
+def rounded_actions(args, decimals):
+    return (np.einsum("ij,ij->i", args["params"], np.round(args["obs"], decimals)) < 0) * 1
+
+
+# (behaviour, its visible case, the right answer, [(the rule a wrong answer shows whatever its constant, that answer)]),
+# and answers that are right in another way (float32, a clip far out): no rule, and they pass.
+RULES = {
+    "1.1.1": ("1.1.1/equation-1", 0, lambda a: rounded_actions(a, 17),
+              [("rounds_observation", lambda a: rounded_actions(a, d)) for d in (2, 3, 4)], []),
+    "1.2.1": ("1.2.1/equation-3", 0, fd_answer,
+              [("scaled_steps", lambda a: fd_answer(a, lambda h: h / 2)), ("scaled_steps", lambda a: fd_answer(a, lambda h: 10 * h)),
+               ("one_step", lambda a: fd_answer(a, lambda h: np.full(len(h), h[0]))),
+               ("one_step", lambda a: fd_answer(a, lambda h: np.full(len(h), 1e-3))),
+               ("moves_every_coordinate", lambda a: fd_answer(a, every=lambda h, i: h)),
+               ("moves_every_coordinate", lambda a: fd_answer(a, every=lambda h, i: np.full(len(h), h[i])))],
+              [lambda a: fd_answer(a).astype(np.float32)]),
+    "2.2.1": ("2.2.1/values", 0, lambda a: reference_sigmoid(a["z"]),
+              [("cuts_off", lambda a, c=c: np.where(np.abs(a["z"]) > c, (a["z"] > 0) * 1.0, reference_sigmoid(a["z"])))
+               for c in (6, 10, 15)],
+              [lambda a: reference_sigmoid(np.clip(a["z"], -20, 20)), lambda a: reference_sigmoid(a["z"]).astype(np.float32)]),
+    "2.2.3": ("2.2.3/from-weights", 0, lambda a: ascent(a, a["learning_rate"]),
+              [("other_rate", lambda a, r=r: ascent(a, r)) for r in (1.0, 0.2, 0.003)], [lambda a: ascent(a, a["learning_rate"]).astype(np.float32)]),
+    "2.3.1": ("2.3.1/iterations", 0, lambda a: one_vs_rest(a, 1),
+              [("other_steps", lambda a, k=k: one_vs_rest(a, k)) for k in (2, 4)], []),
+}
+
+
+@pytest.mark.quick
+@pytest.mark.parametrize("todo", list(RULES))
+def test_a_rule_names_a_mistake_whatever_its_constant_and_never_a_right_answer(todo):
+    behaviour_id, number, right, wrongs, also_right = RULES[todo]
+    args = visible_args(behaviour_id, number)
+    assert judged(behaviour_id, args, right(args), right(args)).passed
+    for answer in also_right:
+        verdict = judged(behaviour_id, args, answer(args), right(args))
+        assert verdict.passed and not verdict.rule, verdict
+    for rule, answer in wrongs:
+        verdict = judged(behaviour_id, args, answer(args), right(args))
+        assert not verdict.passed and verdict.rule == rule, (rule, verdict.rule, verdict.summary)
+    other = judged(behaviour_id, args, right(args) * -1.0 + 0.5, right(args))  # another mistake: no rule of these
+    assert not other.passed and other.rule == "", other.rule
+
+
+# --------------------------------------------------------------------------------------------
 # 1.3.1 on the grader's records, whatever door the episodes came through (no sandbox)
 # --------------------------------------------------------------------------------------------
 

@@ -24,6 +24,8 @@ import pytest
 from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, kits, mistakes
 from hwtools.grade.checks.verdicts import show
 from hwtools.grade.in_sandbox import served
+from hwtools import check_cell
+from hwtools.check_cell import check_lines
 from hwtools.grade.feedback import render
 import editions
 from cheats import leak_search
@@ -155,6 +157,16 @@ def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, 
     if todo != "1.3.3":  # and the one line of Python that rebuilds the visible input (1.3.3's is a setting)
         assert named["reproduce"].startswith("from hwtools.cases import visible_case; ") and "\n" not in named["reproduce"]
     assert all(other.get("mistake") is None for other in result["todos"] if other["id"] != todo)
+    assert_first_two_lines_say_what_is_wrong(entry, diagnosis)
+
+
+def assert_first_two_lines_say_what_is_wrong(entry, diagnosis):
+    """Issue 40.4: the check cell's line 1 is the TODO, its verdict and expected against actual; line 2
+    (wrapped at words, so it may go on below) the known mistake."""
+    lines = check_lines(entry)
+    assert lines[0].startswith(f"TODO {entry['id']} fails: ") and "expected" in lines[0] and "actual" in lines[0], lines
+    assert lines[1].startswith("  ") and diagnosis.startswith(lines[1].strip()), lines
+    assert len(lines) <= check_cell.MAX_LINES, lines
 
 
 # A known mistake written with another constant than its wrong solution's (issue 32.5: 5 rollouts
@@ -169,6 +181,7 @@ def test_a_known_mistake_with_another_constant_is_named_as_that_mistake(grader, 
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
     assert (entry.get("mistake") or {}).get("diagnosis") == expected.diagnosis, (path.name, mistake, entry.get("mistake"))
     assert points(result)[todo] <= 0.3 * TODO_BY_ID[todo].auto, (path.name, points(result)[todo])
+    assert_first_two_lines_say_what_is_wrong(entry, expected.diagnosis)
 
 
 def test_a_known_mistake_that_returns_a_list_is_named_as_that_mistake(grader, layout, tmp_path):
