@@ -60,7 +60,7 @@ def render(result, details=True):
                 lines.extend(_wrapped(f"[{mark}] {points(check['points'])} pt: {check['check']} ({inputs} input(s){where})",
                                       "  "))
             if fields:
-                lines.append("  The first failing check:")
+                lines.append("  First failing check:")
             for name, text in fields:
                 lines.extend(field_lines(name, text, "    ", 110))
             for note in entry["notes"]:

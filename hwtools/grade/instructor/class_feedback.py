@@ -64,7 +64,7 @@ def todo_markdown(entry, visible_only=False):
         lines.append(f"- {'pass' if check['passed'] else '**FAIL**'}, {points(check['points'])} pt: "
                      f"{check['check']} ({inputs} input(s){where})")
     if fields:
-        lines += ["", "The first failing check:"]
+        lines += ["", "First failing check:"]
     for name, text in fields:
         lines += ["", f"{name}:", "", _fence(text)]
     if entry["notes"]:
