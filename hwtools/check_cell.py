@@ -2,11 +2,14 @@
 
 A notebook's check cell is one line, ``check("1.2.1")`` (the convention of otter-grader's
 ``grader.check("q1")``). It runs ``python -m hwtools.grade KIT --todo 1.2.1`` in a subprocess, the
-same command and the same verdicts a student gets in a terminal, and prints one line per check
-of that TODO: ``pass``, or ``FAIL`` with the known mistake the answers match (if one does), the
-visible input and the line of Python that rebuilds it (``hwtools.cases``), the expected and the
-actual value, where they differ and the tolerance (the same fields as every report,
-``feedback.FAILURE_FIELDS``). An untouched TODO (its stub raises ``TodoNotDone``) prints
+same command and the same verdicts a student gets in a terminal. A passing TODO prints one line per
+check. A failing one says what is wrong in its first two lines (``feedback.first_lines``: expected
+against actual where they differ most, then the TODO at fault, the known mistake the answers match,
+or the check that fails), then one line per check and the Python that rebuilds the failing input
+(``hwtools.cases``), 12 lines at most; ``check("1.2.1", details=True)`` adds each failing check's
+values, where they differ, the tolerance, the check in full and the input (the same fields as every
+report, ``feedback.FAILURE_FIELDS``). No line is wider than WIDTH where it has a space to break at:
+JupyterLab breaks a wider one at any character. An untouched TODO (its stub raises ``TodoNotDone``) prints
 "TODO 1.2.1 is not done yet"; a check whose failure another TODO probably caused says so first
 ("probably caused by TODO 1.2.1, which fails its own check": ``hwtools/grade/blame.py``); a kit
 that raises while imported (a NameError at module level, sys.exit) says that error and its line first.

@@ -187,6 +187,7 @@ class Conversation:
         if self.calls > MAX_CALLS:
             return _error("RuntimeError", f"the grader answers at most {MAX_CALLS} calls per check")
         args, state = call["args"], call["state"]
+        self.records.served.append(name)  # which functions the code asked for, in order (2.3.1's rule counts steps)
         self.marks.append(set(marks))
         try:
             if name == "eval_params" and self.case_probe in KNOWN_OBJECTIVE:

@@ -50,7 +50,7 @@ class Records:
     """What the trusted side saw during one case: episodes and evaluations (parameters, rollouts, seed, value)."""
 
     def __init__(self):
-        self.episodes, self.evaluations = [], []
+        self.episodes, self.evaluations, self.served = [], [], []  # served: the name of each function answered
 
     def arrays(self):
         kept = [e for e in self.episodes if e.door != OWN_LOOP or e.steps]
@@ -73,6 +73,7 @@ class Records:
             "evaluation_rollouts": np.array([e[1] for e in ev], dtype=np.int64),
             "evaluation_seeds": np.array([e[2] for e in ev], dtype=np.int64),
             "evaluation_values": np.array([e[3] for e in ev], dtype=np.float64),
+            "served": np.array(self.served, dtype=str),
         }
 
 

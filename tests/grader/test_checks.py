@@ -52,12 +52,12 @@ def ok(**values):
     return {"status": "ok", "error": "", "warnings": [], "values": {k: np.asarray(v) for k, v in values.items()}}
 
 
-def judged(behaviour_id, args, actual, expected):
-    """The verdict of ``behaviour_id``'s judge on one answer, without a sandbox."""
+def judged(behaviour_id, args, actual, expected, records=None):
+    """The verdict of ``behaviour_id``'s judge on one answer (and the grader's ``records`` of its run), without a sandbox."""
     b = behaviour(behaviour_id)
     name = {"2.2.1": "values", "1.2.1": "gradient", "2.2.2": "probabilities", "2.3.1": "weights",
             "2.2.3": "weights", "1.1.1": "actions", "2.1.1": "gradient"}[b.todo]
-    return b.judge(args, ok(**{name: actual}), {name: np.asarray(expected)}, [])
+    return b.judge(args, {**ok(**{name: actual}), "records": dict(records or {})}, {name: np.asarray(expected)}, [])
 
 
 def reference_sigmoid(z):
@@ -413,9 +413,11 @@ def fd_answer(args, steps=None, every=None):
 def ascent(args, rate, steps=1, start=None, labels=None):
     """Weights after ``steps`` steps of equation (8) with ``rate`` (2.2.3's cases; 2.3.1's with ``labels``)."""
     w = np.asarray(args["weights"] if start is None else start, dtype=np.float64)
+    X_aug = np.hstack([np.asarray(args["X"]), np.ones((len(args["X"]), 1))])
+    y = np.asarray(args["y"] if labels is None else labels, dtype=np.float64)
     out = []
     for _ in range(steps):
-        w = w + rate * p2_logreg._ascent_gradient(w, np.asarray(args["X"]), args["y"] if labels is None else labels)
+        w = w + rate * X_aug.T @ (y - reference_sigmoid(X_aug @ w))
         out.append(w)
     return np.array(out)
 
@@ -425,6 +427,11 @@ def one_vs_rest(args, per_iteration):
     start = args.get("initial_weights", np.zeros((classes, X.shape[1] + 1)))
     return np.array([ascent({"X": X, "weights": start[c]}, args["learning_rate"], per_iteration * args["n_iters"],
                             labels=(np.asarray(args["y"]) == c) * 1.0)[-1] for c in range(classes)])
+
+
+def steps_asked(args, per_iteration):
+    """2.3.1's records of a fit that asked the grader for ``per_iteration`` steps per classifier and iteration."""
+    return {"served": np.array(["gradient_ascent_step"] * (per_iteration * int(args["n_classes"]) * int(args["n_iters"])))}
 
 
 def rounded_actions(args, decimals):
@@ -452,6 +459,7 @@ RULES = {
     "2.3.1": ("2.3.1/iterations", 0, lambda a: one_vs_rest(a, 1),
               [("other_steps", lambda a, k=k: one_vs_rest(a, k)) for k in (2, 4)], []),
 }
+RECORDS = {"2.3.1": steps_asked}  # rules read from the grader's records: what the wrong answer's run asked for
 
 
 @pytest.mark.quick
@@ -463,10 +471,12 @@ def test_a_rule_names_a_mistake_whatever_its_constant_and_never_a_right_answer(t
     for answer in also_right:
         verdict = judged(behaviour_id, args, answer(args), right(args))
         assert verdict.passed and not verdict.rule, verdict
-    for rule, answer in wrongs:
-        verdict = judged(behaviour_id, args, answer(args), right(args))
+    for k, (rule, answer) in enumerate(wrongs):
+        records = RECORDS[todo](args, (2, 4)[k]) if todo in RECORDS else {}
+        verdict = judged(behaviour_id, args, answer(args), right(args), records)
         assert not verdict.passed and verdict.rule == rule, (rule, verdict.rule, verdict.summary)
-    other = judged(behaviour_id, args, right(args) * -1.0 + 0.5, right(args))  # another mistake: no rule of these
+    other = judged(behaviour_id, args, right(args) * -1.0 + 0.5, right(args),  # another mistake: no rule of these
+                   RECORDS[todo](args, 1) if todo in RECORDS else {})
     assert not other.passed and other.rule == "", other.rule
 
 

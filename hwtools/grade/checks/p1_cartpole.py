@@ -93,7 +93,7 @@ def _policy_row(args, index):
     return f"row {row} (params . obs = {_number_text(params @ obs)}): params {show(params)}, obs {show(obs)}"
 
 
-def _rounds_observation(args, actual, expected, tolerance):
+def _rounds_observation(args, actual, expected, tolerance, result=None):
     """"rounds_observation" (a known mistake) if the actions are equation (1) on the observation rounded to
     some number of decimals (0 to 8), else ""."""
     params, obs = np.asarray(args["params"], dtype=np.float64), np.asarray(args["obs"], dtype=np.float64)
@@ -212,7 +212,7 @@ def _step_sizes(f, x, i, value):
     return roots
 
 
-def _finite_diff_rule(args, actual, expected, tolerance):
+def _finite_diff_rule(args, actual, expected, tolerance, result=None):
     """The known mistake a wrong gradient is, whatever its constant, or "": "moves_every_coordinate"
     (f(x + h) - f(x - h), or f(x + h_i) - f(x - h_i), over 2 h_i: every coordinate moved at once);
     "scaled_steps" (equation (3) with steps k h_i, one k != 1 for every coordinate: h_i / 2, 10 h_i);

@@ -90,7 +90,7 @@ def _sigmoid_entry(args, index):
     return f"z{list(index) if index else ''} = {_number_text(z[index] if index else z)}"
 
 
-def _cuts_off(args, actual, expected, tolerance):
+def _cuts_off(args, actual, expected, tolerance, result=None):
     """"cuts_off" (a known mistake) if the values are exactly 0 and 1 from some |z| = c on (c below 36, where
     sigma itself is not yet 1 in float64) and sigma below it, whatever c is, else ""."""
     z = np.asarray(args["z"], dtype=np.float64).reshape(actual.shape)
@@ -214,34 +214,19 @@ def make_step(rng, variant, start="zero", steps=1):
             "learning_rate": float((0.05, 0.01, 0.02)[variant % 3]), "steps": steps}
 
 
-def _logistic(s):
-    with np.errstate(over="ignore", under="ignore"):
-        return np.where(s >= 0, 1.0 / (1.0 + np.exp(-np.abs(s))), np.exp(-np.abs(s)) / (1.0 + np.exp(-np.abs(s))))
-
-
-def _ascent_gradient(weights, X, y):
-    """The summed gradient of equation (7) at ``weights`` (the grader's own, for the rules below)."""
-    X_aug = np.hstack([X, np.ones((len(X), 1))])
-    return X_aug.T @ (np.asarray(y, dtype=np.float64) - _logistic(X_aug @ weights))
-
-
-def _other_rate(args, actual, expected, tolerance):
-    """"other_rate" (a known mistake) if every step is equation (8) with one rate r > 0 of another size than
-    learning_rate (none: r = 1; a number of one's own), whatever r is, else "". The mean gradient (r =
+def _other_rate(args, actual, expected, tolerance, result):
+    """"other_rate" (a known mistake) if the first step is equation (8) with one rate r > 0 of another size
+    than learning_rate (none: r = 1; a number of one's own), whatever r is, else "". The gradient is the
+    reference's own, read from its answer (its first step over learning_rate). The mean gradient (r =
     learning_rate / N) and a step down (r < 0) are mistakes of their own."""
-    X, y, rate = np.asarray(args["X"], dtype=np.float64), args["y"], float(args["learning_rate"])
-    weights = np.asarray(args["weights"], dtype=np.float64)
-    gradient = _ascent_gradient(weights, X, y)
+    rate, weights = float(args["learning_rate"]), np.asarray(args["weights"], dtype=np.float64)
+    gradient = (expected[0] - weights) / rate
     if not np.all(np.isfinite(gradient)) or gradient @ gradient == 0:
         return ""
     r = float((actual[0] - weights) @ gradient / (gradient @ gradient))
-    if not r > 0 or any(np.isclose(r, other, rtol=1e-4) for other in (rate, rate / len(X))):
+    if not r > 0 or any(np.isclose(r, other, rtol=1e-4) for other in (rate, rate / len(args["X"]))):
         return ""
-    steps = []
-    for _ in range(len(actual)):
-        weights = weights + r * _ascent_gradient(weights, X, y)
-        steps.append(weights)
-    return "other_rate" if close_to(actual, np.array(steps), tolerance) else ""
+    return "other_rate" if close_to(actual[0], weights + r * gradient, tolerance) else ""
 
 
 def _weight(args, j):
@@ -295,22 +280,13 @@ def make_iterations(rng, variant):
                             absent=variant == 1)
 
 
-def _steps_per_class(args, actual, expected, tolerance):
-    """"other_steps" (a known mistake) if each iteration takes k steps per classifier, one k other than 1
-    (and other than n_iters: the two-class fit for n_iters steps inside the loop is a mistake of its
-    own), whatever k is, else ""."""
-    X, y, rate, n_iters = np.asarray(args["X"], dtype=np.float64), np.asarray(args["y"]), float(args["learning_rate"]), \
-        int(args["n_iters"])
-    start = np.asarray(args.get("initial_weights", np.zeros((int(args["n_classes"]), X.shape[1] + 1))), dtype=np.float64)
-    weights, found = start.copy(), None
-    for total in range(1, 6 * n_iters + 1):
-        weights = np.array([w + rate * _ascent_gradient(w, X, (y == c) * 1.0) for c, w in enumerate(weights)])
-        if close_to(actual, weights, tolerance):
-            found = total
-            break
-    if found is None or found % n_iters or found // n_iters in (1, n_iters):
-        return ""
-    return "other_steps"
+def _steps_per_class(args, actual, expected, tolerance, result):
+    """"other_steps" (a known mistake) if the code asked the grader for k steps (gradient_ascent_step,
+    answered by the reference and recorded) per classifier and iteration, one k of 2 or more, whatever k
+    is, else "". (k = n_iters is the two-class fit for n_iters steps inside the loop, a mistake of its own.)"""
+    calls = int(np.sum(result["records"].get("served", np.zeros(0, dtype=str)) == "gradient_ascent_step"))
+    once = int(args["n_classes"]) * int(args["n_iters"])
+    return "other_steps" if calls >= 2 * once and calls % once == 0 and calls // once != int(args["n_iters"]) else ""
 
 
 def _class_weight(args, index):

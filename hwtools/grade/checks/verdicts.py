@@ -172,8 +172,8 @@ def _close(actual, expected, rtol, atol):
 
 def exact(name, tolerance=EXACTLY, locate=None, rule=None):
     """A judge: value ``name`` equals the reference's within ``tolerance`` (``difference_words``).
-    ``rule(args, actual, expected)``: the known mistake a wrong answer shows whatever its constant
-    ("rounds_observation", ...; ``mistakes.py``), or "": asked only when the answer is wrong."""
+    ``rule(args, actual, expected, tolerance, result)``: the known mistake a wrong answer shows whatever
+    its constant ("rounds_observation", ...; ``mistakes.py``), or "": asked only when the answer is wrong.""" 
 
     def judge(args, result, expected, services):
         want = expected[name]
@@ -181,22 +181,23 @@ def exact(name, tolerance=EXACTLY, locate=None, rule=None):
             return Verdict(False, show(want), result["error"])
         actual = result["values"][name]
         passed, words, summary = difference_words(actual, want, tolerance, args, locate)
-        seen = "" if passed or rule is None else _rule_of(rule, args, actual, want, tolerance)
+        seen = "" if passed or rule is None else _rule_of(rule, args, actual, want, tolerance, result)
         return Verdict(passed, show(want), show(actual), words, "" if passed else tolerance.words(), seen, summary)
 
     judge.tolerance = tolerance
     return judge
 
 
-def _rule_of(rule, args, actual, expected, tolerance):
+def _rule_of(rule, args, actual, expected, tolerance, result):
     """What ``rule`` sees in a wrong answer of the right shape, or "" (an answer it cannot read is no mistake it knows)."""
     arranged, wrong_shape = same_numbers(actual, expected)
     if wrong_shape:
         return ""
     try:
         with np.errstate(all="ignore"):
-            return rule(args, np.asarray(arranged, dtype=np.float64), np.asarray(expected, dtype=np.float64), tolerance)
-    except (ValueError, TypeError, FloatingPointError, OverflowError):
+            return rule(args, np.asarray(arranged, dtype=np.float64), np.asarray(expected, dtype=np.float64), tolerance,
+                        result)
+    except (ValueError, TypeError, KeyError, IndexError, FloatingPointError, OverflowError):
         return ""
 
 
