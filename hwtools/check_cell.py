@@ -194,12 +194,9 @@ def check_lines(entry, details=False):
         return lines
     if first and first.get("reproduce"):
         lines += field_lines("reproduce", first["reproduce"], "  ", WIDTH)
-    more = f"check(\"{todo}\", details=True) shows the inputs, the values in full and the tolerances"
-    more += f"; and {len(notes)} note(s)" if notes else ""
-    room = MAX_LINES - len(lines) - 1
-    if room < 0:  # the first lines and the checks come first; the rest is one call away
-        lines = lines[:MAX_LINES - 1]
-    return lines + [more if len(more) <= WIDTH else more[:WIDTH].rsplit(" ", 1)[0]]
+    more = f"check(\"{todo}\", details=True) shows the inputs, the values in full, the tolerances" + \
+        (f" and {len(notes)} note(s)" if notes else "")
+    return lines[:MAX_LINES - 1] + [more]  # the first lines and the checks first; the rest is one call away
 
 
 def _passing(entry, checks, details):
