@@ -73,7 +73,7 @@ def render(result, details=True):
 # After a failure's first two lines (``first_lines``): the values and where they differ, then the check in
 # full, the input and the line that rebuilds it. (The known mistake is line 2.)
 FAILURE_FIELDS = ("expected", "actual", "difference", "tolerance", "check", "input", "reproduce")
-UNWRAPPED = ("reproduce",)  # one line of Python, to copy: never wrapped
+UNWRAPPED = ("reproduce",)  # Python to copy: one statement a line, never wrapped
 
 
 def field_lines(name, text, indent, width):
@@ -89,7 +89,7 @@ def field_lines(name, text, indent, width):
 
 def first_lines(entry, verdict):
     """The first lines of a TODO's report, the same in every report (issue 40.4): line 1 the TODO, the
-    ``verdict`` (the caller's words: "fails", "0 of 10 automatic point(s)") and what is wrong, expected
+    ``verdict`` (the caller's words: "fails", "earns 0 of 10 points") and what is wrong, expected
     against actual where they differ most (``Verdict.summary``); line 2 the TODO at fault (the
     preview's blame), else the known mistake the answers match, else the check that fails in one line;
     then a note that costs nothing but breaks the code calling it (a list where an array is expected).
