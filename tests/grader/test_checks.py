@@ -344,14 +344,15 @@ def test_the_makers_cartpole_is_gymnasiums():
 
 def test_1_3_1_inputs_reach_the_cap_and_end_early_in_the_same_call():
     """An eval_params that stops at the first episode to reach the cap must be seen: in one call, the
-    first episode ends early and a later one reaches the cap, visible and hidden (played by gymnasium)."""
+    first and the last episode end early and one between them reaches the cap, visible and hidden
+    (played by gymnasium), so that code stopping there plays fewer episodes than it was asked for."""
     from hwlib.machinery.episodes import play_batch
     from hwtools.facts import MAX_EPISODE_STEPS
 
     def mixed(args):
         seeds = args["seed"] + np.arange(args["num_rollouts"])
         lengths = play_batch(np.tile(args["params"], (len(seeds), 1)), seeds)
-        return lengths[0] < MAX_EPISODE_STEPS and lengths.max() == MAX_EPISODE_STEPS
+        return lengths[0] < MAX_EPISODE_STEPS > lengths[-1] and lengths.max() == MAX_EPISODE_STEPS
 
     assert reaches("1.3.1", "mean-reward", mixed) == (True, True)
 

@@ -318,10 +318,10 @@ ON_THE_EDGE = ((0.2262, -1.1718, -1.1735, -0.8225), (0.0084, -1.2424, -1.1693, -
 
 def make_eval_case(rng, variant):
     """Random parameters (episodes of about 10 steps), or (variant 1) parameters ``ON_THE_EDGE`` (each
-    entry moved by up to 1%) and a
-    seed such that among the case's episodes (seed + k) one reaches the episode cap and the others, the
-    first among them, end within SHORT_EPISODE steps, in the same call (each step of an episode played
-    in the code's own environment is a message: few steps keep such a run short)."""
+    entry moved by up to 1%) and a seed such that among the case's episodes (seed + k) one reaches the
+    episode cap, neither the first nor the last (so that code stopping there plays fewer), and the
+    others end within SHORT_EPISODE steps, in the same call (each step of an episode played in the
+    code's own environment is a message: few steps keep such a run short)."""
     rollouts, span = int((3, 4, 1, 6)[variant % 4]), 32  # seeds played at once
     while variant == 1:
         params = np.array(ON_THE_EDGE[int(rng.integers(len(ON_THE_EDGE)))]) * rng.uniform(0.99, 1.01, 4)  # drawn too
@@ -330,7 +330,8 @@ def make_eval_case(rng, variant):
         capped, short = lengths == facts.MAX_EPISODE_STEPS, lengths < SHORT_EPISODE
         for first in range(span - rollouts + 1):
             window = slice(first, first + rollouts)
-            if short[first] and capped[window].sum() == 1 and np.all(capped[window] | short[window]):
+            if short[first] and capped[window].sum() == 1 and not capped[first + rollouts - 1] and \
+                    np.all(capped[window] | short[window]):
                 return {"params": params, "num_rollouts": rollouts, "seed": base + first}
     return {"params": rng.uniform(-1.0, 1.0, 4) * np.array([0.3, 1.0, 1.0, 1.0]), "num_rollouts": rollouts,
             "seed": int(rng.integers(0, 5_000))}
