@@ -332,6 +332,7 @@ def reaches(todo, key, regime, draws=4):
     return visible, all(drawn)
 
 
+@pytest.mark.quick
 def test_the_makers_cartpole_is_gymnasiums():
     """1.3.1's maker picks its seeds with its own CartPole (episode_lengths); it must play gymnasium's."""
     from hwlib.machinery.episodes import play_batch
@@ -342,6 +343,7 @@ def test_the_makers_cartpole_is_gymnasiums():
     assert np.array_equal(p1_cartpole.episode_lengths(rows, seeds), play_batch(rows, seeds))
 
 
+@pytest.mark.quick
 def test_1_3_1_inputs_reach_the_cap_and_end_early_in_the_same_call():
     """An eval_params that stops at the first episode to reach the cap must be seen: in one call, the
     first and the last episode end early and one between them reaches the cap, visible and hidden
@@ -357,6 +359,7 @@ def test_1_3_1_inputs_reach_the_cap_and_end_early_in_the_same_call():
     assert reaches("1.3.1", "mean-reward", mixed) == (True, True)
 
 
+@pytest.mark.quick
 def test_1_3_2_inputs_reach_the_cap_and_train_on_at_it():
     """A training loop that stops once the reward reaches the cap must be seen: a known objective, capped
     where rewards are, that the reference's run reaches before its last update, visible and hidden."""
@@ -374,6 +377,7 @@ def test_1_3_2_inputs_reach_the_cap_and_train_on_at_it():
     assert reaches("1.3.2", "equation-4", capped_early) == (True, True)
 
 
+@pytest.mark.quick
 @pytest.mark.parametrize("decimals", p1_cartpole.ROUNDED)
 def test_1_1_1_inputs_show_an_observation_rounded(decimals):
     def flips(args):
@@ -384,6 +388,7 @@ def test_1_1_1_inputs_show_an_observation_rounded(decimals):
     assert reaches("1.1.1", "equation-1", flips) == (True, True)
 
 
+@pytest.mark.quick
 def test_2_2_3_and_2_3_1_inputs_reach_a_single_class_and_an_absent_one():
     def single(args):
         return np.unique(np.asarray(args["y"])).size == 1
