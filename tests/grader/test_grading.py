@@ -657,6 +657,11 @@ def test_answer_key_grades_the_visible_checks_of_a_student_edition(answer_key, l
     result = student.grade(tmp_path / "kit", todos=["1.1.1", "2.2.1", "2.2.3"])
     assert points(result) == {"1.1.1": 2, "2.2.1": 2, "2.2.3": 5}
     assert result["one_mistake_one_place"] is False
+    # issue 40.4: the preview opens with what it is, whatever sandbox it found (never "NOT ISOLATED" and a module name)
+    for isolated in (True, False):
+        report = render({**result, "isolated": isolated, "isolation": "No module named 'hwtools.grade.instructor'"})
+        assert report.startswith("Preview of the visible checks, running your code on this computer"), report[:200]
+        assert "NOT ISOLATED" not in report and ("hwtools.grade.instructor" in report) == isolated
 
 
 def test_command_line_help_needs_no_homework_packages():
