@@ -172,12 +172,15 @@ SHORT = 60  # characters: an expected value this short is said in full in a fail
 
 
 def _summary(verdict):
-    """What is wrong in one clause: the judge's ``summary``, else expected against actual (the actual
-    alone where the expected value is a sentence: it is said in full below)."""
+    """What is wrong in one clause: the judge's ``summary``, else expected against actual, each cut at a
+    word to a line's room (both are said in full below)."""
     if verdict.summary:
         return verdict.summary
-    actual = verdict.actual if len(verdict.actual) <= 2 * SHORT else verdict.actual[:2 * SHORT].rsplit(" ", 1)[0] + " ..."
-    return f"expected {verdict.expected}, actual {actual}" if len(verdict.expected) <= SHORT else f"actual {actual}"
+
+    def cut(text, room):
+        return text if len(text) <= room else text[:room].rsplit(" ", 1)[0] + " ..."
+
+    return f"expected {cut(verdict.expected, SHORT)}, actual {cut(verdict.actual, 2 * SHORT)}"
 
 
 def name_mistake(entry, named, scrub=str):
