@@ -130,6 +130,11 @@ def _wrap(text, indent, hang=4):
 MAX_LINES = 12  # what a failing TODO prints unless asked for details
 
 
+def _cut(text):
+    """``text`` in one line of at most WIDTH characters, cut at a word ("...") where it is longer."""
+    return text if len(text) <= WIDTH else text[:WIDTH - 4].rsplit(" ", 1)[0] + " ..."
+
+
 def check_lines(entry, details=False):
     """The lines a check cell prints for the grader's result ``entry`` of one TODO: its visible
     checks only (``judging.visible_view``: a check that fails only on hidden inputs passes on the visible
@@ -178,7 +183,8 @@ def check_lines(entry, details=False):
         head = [f"TODO {todo} fails: {raised[0]}"]
     else:
         head = first_lines(entry, "fails")
-    lines = [line for number, text in enumerate(head) for line in _wrap(text, "" if number == 0 else "  ")]
+    # Line 1 in one line (said in full with details=True), so that line 2 is the reason; the rest wrapped at words.
+    lines = [_cut(head[0])] + [line for text in head[1:] for line in _wrap(text, "  ")]
     lines.append("")
     lines.append(f"{title}: {counted}")
     for check, ok in zip(checks, visible_pass):

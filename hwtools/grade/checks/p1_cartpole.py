@@ -532,9 +532,8 @@ def _training_run(args, result, want, shape_want=None):
     if wrong_shape:
         rewards = np.asarray(result["values"]["rewards"])
         early = rewards.ndim == 1 and 0 < len(rewards) < args["iterations"] + 1  # a loop left before its last update
-        return None, Verdict(False, shape_want or want, wrong_shape, rule="stops_early" if early else "",
-                             summary=f"expected {args['iterations']} updates (params_history of shape "
-                                     f"({args['iterations'] + 1}, 4)), actual {wrong_shape}")
+        summary = f"expected {args['iterations']} updates, actual " + (f"{len(rewards) - 1} ({wrong_shape})" if early else wrong_shape)
+        return None, Verdict(False, shape_want or want, wrong_shape, rule="stops_early" if early else "", summary=summary)
     return result["values"], None
 
 
@@ -777,8 +776,9 @@ def judge_learning_rate(args, result, expected, services):
     actual = f"LEARNING_RATE = {show(value)}: rewards {show(run['rewards'], 25)}; " + \
         (f"converged at iteration {at}" if at is not None else "never converged")
     passed = at is not None and at <= deadline
-    summary = (f"expected convergence within {deadline} iterations, actual: LEARNING_RATE = {show(value)} "
-               + (f"converges at iteration {at}" if at is not None else f"never converges (rewards up to {show(max(run['rewards']))})"))
+    summary = f"expected reward {show(top)} from iteration {deadline} on, actual " + \
+        (f"from iteration {at}" if at is not None else f"never (best {show(np.max(run['rewards']))})") + \
+        f" with LEARNING_RATE = {show(value)}"
     return Verdict(passed, want, actual, rule="" if passed else _learning_rate_rule(run["rewards"], top, at),
                    summary=summary)
 

@@ -178,7 +178,7 @@ def exact(name, tolerance=EXACTLY, locate=None, rule=None):
     def judge(args, result, expected, services):
         want = expected[name]
         if result["status"] != "ok":
-            return Verdict(False, show(want), result["error"])
+            return Verdict(False, show(want), result["error"], summary=f"expected the {name}, actual {result['error']}")
         actual = result["values"][name]
         passed, words, summary = difference_words(actual, want, tolerance, args, locate)
         seen = "" if passed or rule is None else _rule_of(rule, args, actual, want, tolerance, result)
