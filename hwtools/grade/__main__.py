@@ -6,13 +6,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
 from pathlib import Path
 
+from hwtools.files import printable_output
 from hwtools.grade.feedback import render
 from hwtools.grade.grader import ANSWER_KEY, BUDGET_FACTOR, KIT_ROOT, Grader, GradingError, has_solutions
 from hwtools.grade.blocks import load_layout
-from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, limit_own_memory
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, end_every_run, limit_own_memory
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.todos import TODO_BY_ID
 
@@ -52,6 +55,8 @@ def main(argv=None):
                              "never runs in two sandboxes at once")
     parser.add_argument("--brief", action="store_true", help="only the table, without the checks of each TODO")
     args = parser.parse_args(argv)
+    printable_output()
+    signal.signal(signal.SIGTERM, _stop)  # the check cell's interrupt: every run ends with this process
     limit_own_memory()  # the trusted side too: nothing a worker sends can take it past this
     unknown = [todo for todo in args.todo or () if todo not in TODO_BY_ID]
     if unknown:
@@ -87,6 +92,11 @@ def main(argv=None):
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
     return 0
+
+
+def _stop(signum, _frame):
+    end_every_run()
+    os._exit(128 + signum)
 
 
 def grade_zip(grader, path, todos=None):

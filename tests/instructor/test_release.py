@@ -19,6 +19,7 @@ import pytest
 
 import editions
 from doc_mentions import Kit, missing
+from day_one import versions_tested
 from instructor.release import (
     ANSWER_KEY,
     INSTRUCTOR_ONLY,
@@ -254,7 +255,11 @@ def test_the_student_readme_installs_with_the_editions_files_on_macos_linux_wind
     scripts = {label: sysconfig.get_paths(scheme, vars={"base": ".venv", "platbase": ".venv"})["scripts"] + "/"
                for label, scheme in (("macOS", "posix_prefix"), ("Windows", "nt"))}
     scripts["Windows"] = scripts["Windows"].replace("/", "\\")
-    first = {"macOS": ["python3", "-m", "venv", ".venv"], "Windows": ["py", "-m", "venv", ".venv"], "conda": ["conda", "create"]}
+    tested = versions_tested()  # the Windows line picks one of them (py -3.12): py alone takes the newest installed
+    first = {"macOS": ["python3", "-m", "venv", ".venv"], "Windows": ["py", f"-{variants['Windows'][0][1][1:]}", "-m",
+                                                                    "venv", ".venv"], "conda": ["conda", "create"]}
+    assert variants["Windows"][0][1][1:] in tested, variants["Windows"][0]
+    assert f"Python {tested[0]} to {tested[-1]}" in readme  # the tested versions, as pyproject.toml states them
     for label, lines in variants.items():
         words = [word for line in lines for word in line]
         assert lines[0][:len(first[label])] == first[label], (label, lines[0])
