@@ -227,8 +227,9 @@ def _keep_students(report_dir, building, say):
     if note:
         say(f"  {note}")
     for path in sorted(report_dir.rglob("*")):
-        kept = building / path.relative_to(report_dir)
-        if path.is_file() and not kept.exists() and path.name != AS_WRITTEN:
+        relative = path.relative_to(report_dir)
+        kept = building / relative
+        if path.is_file() and not kept.exists() and not any(part.startswith(".") for part in relative.parts):
             kept.parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(path, kept)
 

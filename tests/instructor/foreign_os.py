@@ -7,9 +7,9 @@ notebook kernel, ``python -m hwtools.grade``, the grader's worker (``python -B -
 with a clean environment: ``-s`` leaves site-packages' ``.pth`` files on), the report and its kernels.
 ``stripped_path(folder, system)`` makes the programs the environment's ``PATH`` holds.
 
-Each profile does what its system does (``docs/student-side.md`` and ``/work/shared/platforms/behaviours.md``
-give the sources). A behaviour that on the real system binds every program binds every program here too
-where this box's other code copes (the refused address-space limit, "spawn", the code page of the
+Each profile does what its system does (the CPython issues and docs each behaviour comes from are named
+below, and in ``docs/development.md``). A behaviour that on the real system binds every program binds every
+program here too where this box's other code copes (the refused address-space limit, "spawn", the code page of the
 standard streams, the refused SIGINT wake-up); one that other code meets only through its own branches for
 that system (this box's Jupyter, tornado and zmq take their Linux branches) binds the kit's own code only:
 a call the kit asks for, i.e. whose nearest caller outside the standard library is kit code (a frame whose

@@ -16,6 +16,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -31,6 +32,9 @@ from hwtools.report import chromium, words
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 REPORT_TIMEOUT = 900  # seconds; the run takes about a minute on 2 cores
+# The first test that reads the report also waits for its module fixture: an edition, a student's Python (the first
+# time on a machine, its packages: ``day_one.packages_of``) and the report itself.
+pytestmark = pytest.mark.timeout(REPORT_TIMEOUT + 600)
 STUDENT_NAME = "Ada Lovelace / alovelac"
 TOP = float(settings.MAX_EPISODE_STEPS)  # the best episode reward
 
@@ -180,6 +184,41 @@ def test_local_fonts_are_embedded_and_missing_ones_dropped(tmp_path):
     embedded = report.embed_local_fonts(css)
     assert "url(data:font/woff;base64,d09GRi1ieXRlcw==) format('woff')" in embedded
     assert "url(data:,)" in embedded and "file:" not in embedded
+
+
+def test_a_file_url_becomes_the_systems_path_drive_letter_and_letters_kept(monkeypatch):
+    """The fonts of a page typeset on Windows: ``file:///C:/Users/...`` is ``C:\\Users\\...`` there
+    (``url2pathname``, Windows' own: ``nturl2path``), not ``/C:/Users/...``, which names no file. Made to fail once:
+    the kit of e0973d3 cut the scheme (``Path(unquote(urlparse(url).path))``) and got ``\\C:\\Users\\...``."""
+    import nturl2path
+    from pathlib import PureWindowsPath
+
+    monkeypatch.setattr(chromium, "url2pathname", nturl2path.url2pathname)
+    monkeypatch.setattr(chromium, "Path", PureWindowsPath)
+    url = "file:///C:/Users/%C5%81ukasz%20Zo%C3%AB/hw1/.venv/Lib/site-packages/x/MathJax_Main-Regular.woff"
+    path = chromium.file_path(url)
+    assert path == PureWindowsPath(r"C:\Users\Łukasz Zoë\hw1\.venv\Lib\site-packages\x\MathJax_Main-Regular.woff")
+    assert path.drive == "C:"
+    assert chromium.file_path(PureWindowsPath(r"C:\Users\Łukasz Zoë\f.woff").as_uri()) == PureWindowsPath(
+        r"C:\Users\Łukasz Zoë\f.woff")
+    monkeypatch.undo()
+    assert report.embed_local_fonts(f"url('{Path('/no/such/Łukasz Zoë/f.woff').as_uri()}')") == "url(data:,)"
+
+
+def test_the_report_gives_the_browser_pages_in_its_own_folder_not_the_systems_tmp(tmp_path, monkeypatch):
+    """Ubuntu's Chromium is a snap with a /tmp of its own: the pages it typesets, and its profile, are in the
+    report's folder, never under the system's temporary folder. Made to fail once: e0973d3 wrote them to
+    /tmp/hwtools-report-*."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "system-tmp"))
+    (tmp_path / "system-tmp").mkdir()
+    import hwtools.report.command as command
+
+    monkeypatch.setattr(command, "chromium_path", lambda: Path("/usr/bin/chromium"))  # the pages go to the scratch folder
+    monkeypatch.setattr(command, "_run_notebooks", lambda notebooks, tmp, step: (_ for _ in ()).throw(RuntimeError(str(tmp))))
+    with pytest.raises(RuntimeError) as raised:
+        report.build_report(tmp_path / "handin" / "report", progress=lambda line: None)
+    scratch = Path(str(raised.value))
+    assert scratch.parent == tmp_path / "handin" / "report" and not scratch.is_relative_to(tmp_path / "system-tmp")
 
 
 def _program(path):
