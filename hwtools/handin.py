@@ -273,6 +273,11 @@ def _move(source, destination, shown):
         raise HandinError(held_words(held or shown)) from None
 
 
+def _shown(path, kit):
+    """``path`` as the student finds it: from the kit's folder, where they run this, if it is in it."""
+    return path.relative_to(kit).as_posix() if path.is_relative_to(kit) else str(path)
+
+
 def upload_pdf(out_dir, andrew_id, say=print):
     """The PDF to upload, ``out_dir/ANDREW_ID.pdf``, made the student's where their answers.tex has words of theirs
     and they compiled it since (``report/answers.pdf``, newer than ``report/answers.tex``); None, said, where their
@@ -336,7 +341,7 @@ def handin(andrew_id, kit=KIT_ROOT, out_dir=None, name=None, report=True, say=pr
             f"{out_dir / 'report'}: the report without its PDF ({minutes(time.monotonic() - step)}): {_no_browser()}")
     result["pdf"] = upload_pdf(out_dir, andrew_id, say)
     say("")
-    say(f"Hand in {zip_path} on Canvas" + (f" and {result['pdf']} on Gradescope." if result["pdf"] else
+    say(f"Hand in {_shown(zip_path, kit)} on Canvas" + (f" and {_shown(result['pdf'], kit)} on Gradescope." if result["pdf"] else
                                             " and, once made, the report's PDF on Gradescope (see above)." if report or
                                             (out_dir / "report").is_dir() else ".")
         + f" (hand-in took {minutes(time.monotonic() - started)})")

@@ -457,7 +457,7 @@ def test_the_students_words_and_files_survive_every_later_report(tmp_path, monke
     monkeypatch.setattr(handin, "build_report", fake_report("1"))
     result = handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=said.append)
     assert result["pdf"] == out_dir / "alovelac.pdf" and said[-1].startswith(
-        f"Hand in {out_dir / 'alovelac.zip'} on Canvas and {out_dir / 'alovelac.pdf'} on Gradescope.")
+        "Hand in handin/alovelac.zip on Canvas and handin/alovelac.pdf on Gradescope.")
     tex = report_dir / "answers.tex"
     tex.write_text(tex.read_text().replace("the rate.\n", "the rate.\nBy the sweep: Łukasz's way.\n"), encoding="utf-8")
     (report_dir / "sketch.png").write_bytes(b"my own figure")
@@ -466,7 +466,7 @@ def test_the_students_words_and_files_survive_every_later_report(tmp_path, monke
     said.clear()
     result = handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, report=False, say=said.append)
     assert (out_dir / "alovelac.pdf").read_bytes() == b"%PDF compiled by pdflatex, with my words"
-    assert result["pdf"] == out_dir / "alovelac.pdf" and f"{out_dir / 'alovelac.pdf'} on Gradescope" in said[-1]
+    assert result["pdf"] == out_dir / "alovelac.pdf" and "and handin/alovelac.pdf on Gradescope" in said[-1]
     said.clear()
     monkeypatch.setattr(handin, "build_report", fake_report("2"))
     result = handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=said.append)
