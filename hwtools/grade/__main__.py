@@ -28,6 +28,12 @@ def main(argv=None):
                              "(one folder or .zip per student, named by student id) with --gradebook and --feedback")
     parser.add_argument("--gradebook", metavar="FILE.csv", help="a class: write the gradebook here (one row per student)")
     parser.add_argument("--feedback", metavar="FOLDER", help="a class: write one Markdown feedback file per student here")
+    parser.add_argument("--roster", metavar="CANVAS.csv",
+                        help="a class: Canvas's own gradebook export (Grades > Export); the Canvas import beside the "
+                             "gradebook then has a row per student on it, matched by Canvas's ID")
+    parser.add_argument("--assignment", metavar="'TITLE (ID)'",
+                        help="a class: the Canvas assignment to fill (its title or id in the roster, or 'Title (id)'; "
+                             "default: the roster's only assignment)")
     parser.add_argument("--reference", metavar="KIT_DIR",
                         help="the instructor's kit to grade against (default: this kit if it holds the solutions, "
                              "else the student edition's answer key: visible checks only)")
@@ -67,9 +73,10 @@ def main(argv=None):
                              "(the student edition) grades one kit or one zip")
             return classroom.main(args, parser)
         parser.error(f"{submission}: neither a kit's folder (with hwlib/), nor a .zip, nor a folder of submissions")
-    if args.gradebook or args.feedback:
+    if args.gradebook or args.feedback or args.roster or args.assignment:
         what = "one student's zip" if one_zip else "a kit (it has hwlib/)"
-        parser.error(f"{submission} is {what}; --gradebook and --feedback are for a folder of submissions")
+        parser.error(f"{submission} is {what}; --gradebook, --feedback, --roster and --assignment are for a folder "
+                     "of submissions")
     reference = args.reference
     if reference is None and args.answer_key is None and has_solutions(KIT_ROOT):
         reference = KIT_ROOT
