@@ -35,7 +35,7 @@ KIT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(KIT / "tests" / "grader"))
 
 import similarity_class  # noqa: E402
-from hwtools.grade import blocks, kits  # noqa: E402
+from hwtools.grade import blocks  # noqa: E402
 from hwtools.grade.instructor import similarity  # noqa: E402
 
 
@@ -62,16 +62,9 @@ def timed_command(submissions, out):
 
 
 def natural_flags(layout, folder):
-    graded = {block.todo for found in layout.blocks_by_file.values() for block in found}
-    written = {}
-    for path in sorted(similarity_class.NATURAL.glob("*.py")):
-        todo = path.name.split("_")[0]
-        if todo in graded and not path.stem.endswith("_crlf"):
-            kits.write_submission(layout, folder / path.stem, {todo: path.read_text(encoding="utf-8")})
-            written[todo] = written.get(todo, 0) + 1
+    pairs = similarity_class.natural_class(layout, folder)
     report = similarity.similarity(folder, layout)
-    flagged = sum(pair.flagged for found in report.pairs.values() for pair in found)
-    return flagged, sum(count * (count - 1) // 2 for count in written.values())
+    return sum(pair.flagged for found in report.pairs.values() for pair in found), pairs
 
 
 def main():

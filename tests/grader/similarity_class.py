@@ -230,6 +230,20 @@ def make_class(layout, folder, students, copies, seed):
     return planted
 
 
+def natural_class(layout, folder):
+    """Each natural solution of a TODO the grader reads as a submission of its own in ``folder`` (every
+    other block the stub); a ``_crlf`` file is its twin with Windows line ends, the same solution, so it
+    is left out. Returns how many pairs of one TODO's solutions there are."""
+    graded = {block.todo for found in layout.blocks_by_file.values() for block in found}
+    written = {}
+    for path in sorted(NATURAL.glob("*.py")):
+        todo = path.name.split("_")[0]
+        if todo in graded and not path.stem.endswith("_crlf"):
+            kits.write_submission(layout, folder / path.stem, {todo: path.read_text(encoding="utf-8")})
+            written[todo] = written.get(todo, 0) + 1
+    return sum(count * (count - 1) // 2 for count in written.values())
+
+
 def recall(report, planted, top=10):
     """{todo: share of the planted pairs among that TODO's ``top`` pairs}."""
     found = {}
