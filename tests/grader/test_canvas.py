@@ -24,6 +24,7 @@ from pathlib import Path
 import pytest
 
 from hwtools.grade import AUTO_POINTS, Grader
+from hwtools.todos import MANUAL_POINTS
 from hwtools.grade.feedback import points
 from hwtools.grade.instructor import canvas, classroom
 from hwtools.grade.instructor.gradebook import StudentResult
@@ -48,8 +49,8 @@ STUDENTS = [  # (id, name, sortable name, SIS User ID, login = SIS Login ID, sec
 ]
 ASSIGNMENTS = [  # (id, title, points possible)
     (501, "Homework 0", 10),
-    (502, "Homework 1 (code)", 39),
-    (503, "Homework 1, report", 21),
+    (502, "Homework 1 (code)", AUTO_POINTS),  # the automatic points
+    (503, "Homework 1, report", MANUAL_POINTS),
 ]
 ASSIGNMENT = "Homework 1 (code) (502)"  # Canvas's title_with_id of 502
 
@@ -62,7 +63,7 @@ def canvas_export(students=STUDENTS, assignments=ASSIGNMENTS, include_sis_id=Tru
                "Unposted Final Score"]]
     filler = [""] * (4 + include_sis_id)
     rows.append(filler + ["Manual Posting" if number == 503 else "" for number, _, _ in assignments] + [""] * 6)
-    rows.append(["    Points Possible"] + filler[1:] + [str(most) for _, _, most in assignments] + ["(read only)"] * 6)
+    rows.append(["    Points Possible"] + filler[1:] + [points(most) for _, _, most in assignments] + ["(read only)"] * 6)
     for number, _, sortable, sis_user, login, section in students:
         name = f'="{sortable}"' if re.match(r"^\s*=", sortable) else sortable
         rows.append([name, str(number)] + ([sis_user] if include_sis_id else []) + [login, section]
@@ -157,7 +158,7 @@ def test_the_importer_model_reads_canvas_s_own_export_back_unchanged():
         read = canvas_reads(canvas_export(include_sis_id=include_sis_id, separator=separator, bom=bom))
         assert read["rows"] == [("id", number) for number, *_ in STUDENTS]
         assert read["assignments"] == [("id", number) for number, _, _ in ASSIGNMENTS]
-        assert read["points_possible"] == {number: str(most) for number, _, most in ASSIGNMENTS}
+        assert read["points_possible"] == {number: points(most) for number, _, most in ASSIGNMENTS}
 
 
 def test_the_importer_model_sees_what_the_old_import_did_a_new_assignment_and_no_canvas_id():
@@ -181,16 +182,16 @@ def result(total):
 
 SUBMISSIONS = {  # submission id -> (status, automatic total), and whom each is
     "ajdoe": ("graded", 31.5),  # Jane Doe: the bare login
-    "JSMITH1": ("graded", 39.0),  # the first John Smith: his e-mail's local part, in capitals
+    "JSMITH1": ("graded", 12.5),  # the first John Smith: his e-mail's local part, in capitals
     "smithjohn_LATE_1003_77001_jsmith2": ("graded", 12.0),  # the second: Canvas's "Download Submissions" name
     "zlukasz": ("timed out: 2.2.1", 25.0),  # Zoë
     "sobrien": ("empty", None),  # Seán: handed in nothing; 0 as in the gradebook
     "eve": ("graded", 3.0),  # the student whose name starts with "="
     "ACRUZ": ("graded", 38.0),  # Ana María: her SIS User ID (her login is a gmail address)
-    "stranger": ("graded", 39.0),  # not on the roster
+    "stranger": ("graded", 7.0),  # not on the roster
     "grader-broke": ("grader error: RuntimeError: boom", None),  # not on the roster either
 }
-EXPECTED = {1001: "31.5", 1002: "39", 1003: "12", 1004: "25", 1005: "0", 1006: "3", 1007: "38", 1008: "", 1009: ""}
+EXPECTED = {1001: "31.5", 1002: "12.5", 1003: "12", 1004: "25", 1005: "0", 1006: "3", 1007: "38", 1008: "", 1009: ""}
 
 
 def student_results(submissions=SUBMISSIONS):
@@ -218,7 +219,7 @@ def test_every_row_is_matched_by_canvas_id_and_nothing_new_is_made(tmp_path, inc
     read = canvas_reads(made.text)
     assert read["rows"] == [("id", number) for number, *_ in STUDENTS], "every row by Canvas ID, none new"
     assert read["assignments"] == [("id", 502)], "the existing assignment, none new"
-    assert read["points_possible"] == {502: "39"}, "Canvas's own maximum, unchanged"
+    assert read["points_possible"] == {502: points(AUTO_POINTS)}, "Canvas's own maximum, unchanged"
     assert {number: grades[502] for number, grades in read["grades"].items()} == EXPECTED
     assert made.assignment == ASSIGNMENT and made.rows == len(STUDENTS)
     assert made.blank == ["Handedin, Nobody", "Student, Test"]
@@ -239,14 +240,14 @@ def test_the_assignment_is_found_by_its_whole_header_its_id_or_its_title(roster)
             with pytest.raises(canvas.RosterError, match="3 assignments; name the one to fill with --assignment"):
                 canvas.choose_assignment(roster, given)
             continue
-        assert canvas.choose_assignment(roster, given) == (ASSIGNMENT, "39")
+        assert canvas.choose_assignment(roster, given) == (ASSIGNMENT, points(AUTO_POINTS))
     assert canvas.choose_assignment(roster, "Homework 2 (777)") == ("Homework 2 (777)", "")  # given, used as given
     with pytest.raises(canvas.RosterError, match="no assignment of .* has that title or id"):
         canvas.choose_assignment(roster, "Homework 2")
     with pytest.raises(ValueError, match="does not read as an assignment"):
         canvas.choose_assignment(roster, "Current Score")
     made = canvas.canvas_import(student_results(), roster, "Homework 1, report")
-    assert made.notes == ["Homework 1, report (503) is worth 21 points in Canvas; the automatic points are out of "
+    assert made.notes == [f"Homework 1, report (503) is worth {points(MANUAL_POINTS)} points in Canvas; the automatic points are out of "
                           f"{points(AUTO_POINTS)} (the import leaves Canvas's maximum as it is)"]
 
 
