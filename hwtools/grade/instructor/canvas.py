@@ -133,7 +133,7 @@ def read_roster(path):
             continue  # the row that marks muted or manually posted assignments
         name = cell(row, "Student") or f"{cell(row, 'FirstName')} {cell(row, 'LastName')}".strip()
         canvas_id = cell(row, "ID").strip()
-        if not canvas_id.isdigit():
+        if not re.fullmatch(r"[0-9]+", canvas_id):
             raise RosterError(f"{path}: row {number} ({printable(name)[:60]}): its ID is {printable(canvas_id)[:30]!r}, "
                               "not Canvas's number for the student")
         if canvas_id in seen:

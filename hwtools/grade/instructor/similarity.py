@@ -184,7 +184,7 @@ def _sharing(prints):
 @dataclass
 class Report:
     """What ``similarity`` found: ``pairs`` {todo: [Pair], best first}, ``texts`` {student: {todo:
-    text}}, ``unread`` {student: why}, ``silent`` {todo: why no pair has a score}."""
+    text}}, ``unread`` {student: why}, ``silent`` {todo: why nothing in it is evidence}."""
 
     pairs: dict
     texts: dict
