@@ -167,7 +167,10 @@ def build_report(kit, out_dir, name):
     it: the rest of the report is written), or HandinError. Its pipes carry UTF-8, and an interrupt ends it."""
     command = [sys.executable, "-m", "hwtools.report", str(out_dir), "--name", name]
     with scratch_folder("hwhandin-") as scratch:
-        code, stdout, stderr = run_polled(command, kit, scratch, REPORT_SECONDS)
+        try:
+            code, stdout, stderr = run_polled(command, kit, scratch, REPORT_SECONDS)
+        except CheckError as error:  # it ran over its time
+            raise HandinError(f"the report could not be built (python -m hwtools.report): {error}") from None
     if code != 0:
         lines = [line for line in (stderr + stdout).splitlines() if line.strip()]
         why = next((line for line in lines if "not done yet" in line), None) or "\n".join(lines[-12:])
