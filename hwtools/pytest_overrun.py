@@ -4,7 +4,7 @@ pytest-timeout ends a test that runs over its limit (``timeout`` in pyproject.to
 ``@pytest.mark.timeout(N)``) by a signal where the system has SIGALRM. Windows has none: there its "thread"
 method dumps the stacks and ends the whole pytest process (``os._exit``), so a student whose TODO loops
 forever sees no summary and no other test's result. Where there is no SIGALRM, this plugin first raises
-``TestRanOver`` in the test's thread a little before the limit (``EARLY``), from a timer thread, as
+``TestRanOver`` in the test's thread a little before the limit (``MARGIN``), from a timer thread, as
 ``PyThreadState_SetAsyncExc`` does: Python code stops at its next line, the test fails saying so, and
 the run goes on; pytest-timeout stays the backstop for a test stuck inside a C call.
 Registered by the kit's top-level ``conftest.py``. Standard library and pytest only.
@@ -18,7 +18,12 @@ import threading
 
 import pytest
 
-EARLY = 0.9  # of the test's limit: when this plugin stops it, before pytest-timeout would end the run
+MARGIN = (0.1, 5.0)  # before the limit, this plugin stops a test: a tenth of its limit, at least 5 s (half a short one),
+# so that pytest-timeout's thread, which counts the test's report too, does not end the run meanwhile
+
+
+def _early(limit):
+    return limit - max(MARGIN[0] * limit, min(MARGIN[1], limit / 2))
 
 
 class TestRanOver(Exception):  # noqa: N818 - the name is what pytest prints
@@ -57,7 +62,7 @@ def pytest_runtest_call(item):
                 state["raised"] = True
                 _async_exception(test, TestRanOver)
 
-    timer = threading.Timer(EARLY * limit, stop)
+    timer = threading.Timer(_early(limit), stop)
     timer.daemon = True
     timer.start()
     try:

@@ -761,8 +761,8 @@ def test_later_hand_ins_keep_the_students_words_and_name_the_pdf_to_upload(repor
     of handin/report/answers.tex and compiles it there with pdflatex; a hand-in then names that PDF for upload (as
     handin/alovelac.pdf). They write more, and hand in again with a new report: their words are in its new
     answers.tex, the new report's numbers around them, and the hand-in says their PDF is older than their
-    answers.tex; compiled again, the PDF holds every word. Made to fail once: with e0973d3's hand-in the second
-    report's answers.tex had lost the words (and nothing named the PDF with them)."""
+    answers.tex; compiled again, the PDF holds every word. (e0973d3's hand-in loses the words: its unit-level twin,
+    test_student_path's ``test_the_students_words_and_files_survive_every_later_report``, failed there.)"""
     _latex_tools()
     out_dir, _, edition, _ = report_run
     tex = out_dir / report.ANSWERS_TEX
