@@ -1,5 +1,6 @@
 """Shared test setup: a non-interactive matplotlib backend for every test and notebook kernel, and
-failure reports that name the TODO (``hwtools/pytest_todo.py``)."""
+failure reports that name the TODO (``hwtools/pytest_todo.py``), and a test that runs over its time limit
+failing alone on Windows too (``hwtools/pytest_overrun.py``)."""
 
 import os
 
@@ -7,7 +8,7 @@ import pytest
 
 os.environ["MPLBACKEND"] = "Agg"
 
-pytest_plugins = ("hwtools.pytest_todo",)
+pytest_plugins = ("hwtools.pytest_todo", "hwtools.pytest_overrun")
 
 # The tests that run student code (graders, sandboxes, class runs). Their runs take turns machine-wide
 # (hwtools/grade/sandbox.py: never two at once), so with two test processes each waited for the

@@ -15,6 +15,7 @@ Standard library only: the grader's trusted process imports this module, never `
 from __future__ import annotations
 
 import ast
+import functools
 import io
 import os
 import re
@@ -166,6 +167,7 @@ def read_submission(root, layout):
 # --------------------------------------------------------------------------------------------
 
 
+@functools.lru_cache(maxsize=32)  # the reference's files are compared with every submission's
 def skeleton(text):
     """The lines outside the blocks (markers reduced to the TODO id), to compare two editions."""
     lines = markers.split_lines(text)

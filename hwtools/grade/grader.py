@@ -419,7 +419,7 @@ class Grader:
                                   self.known_mistakes)
 
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
-        with tempfile.TemporaryDirectory(prefix="hwgrade-kit-") as scratch:
+        with tempfile.TemporaryDirectory(prefix="hwgrade-kit-", ignore_cleanup_errors=True) as scratch:
             kit = kits.write_files(files, Path(scratch) / "kit")
             try:
                 return broker.run_cases(self.sandbox.start(kit, budget=budget), todo, visible, hidden, pool)
@@ -491,7 +491,7 @@ class Grader:
         visible = checks.CaseSet(todo, visible=self.cases[todo].visible)
 
         def signature(solution):
-            with tempfile.TemporaryDirectory(prefix="hwgrade-mistake-") as scratch:
+            with tempfile.TemporaryDirectory(prefix="hwgrade-mistake-", ignore_cleanup_errors=True) as scratch:
                 kits.write_submission(self.layout, scratch, {todo: list(solution.bodies)}, others="stub")
                 read = blocks.read_submission(Path(scratch), self.layout)
             files = self._composite(todo, read, self.layout)

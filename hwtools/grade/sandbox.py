@@ -79,6 +79,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from hwtools.grade.in_sandbox.channel import ChannelTimeout
+from hwtools.grade.in_sandbox.worker import set_limit
 from hwtools.grade.kits import WORKER, worker_env
 from hwtools.grade.processes import Pipes, kill_tree
 
@@ -114,16 +115,18 @@ class _OneRunAtATime:
     """Held by the one run of student code that executes on this machine (for this user's graders)."""
 
     def __init__(self):
-        self._thread, self._fd = threading.Lock(), None
+        self._thread, self._fd, self._machine_wide = threading.Lock(), None, True
 
-    def acquire(self):
+    def acquire(self, machine_wide=True):
+        """Take the turn: within this process, and (``machine_wide``) between processes too."""
         self._thread.acquire()
+        self._machine_wide = machine_wide
         try:
-            if self._fd is None and fcntl is not None:
+            if machine_wide and self._fd is None and fcntl is not None:
                 folder = Path.home() / ".cache" / "hwgrade"
                 folder.mkdir(mode=0o700, parents=True, exist_ok=True)
                 self._fd = os.open(folder / "untrusted-run.lock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
-            if self._fd is not None:
+            if machine_wide and self._fd is not None:
                 fcntl.flock(self._fd, fcntl.LOCK_EX)
         except OSError as error:
             self._thread.release()
@@ -134,13 +137,22 @@ class _OneRunAtATime:
             raise
 
     def release(self):
-        if self._fd is not None:
+        if self._machine_wide and self._fd is not None:
             fcntl.flock(self._fd, fcntl.LOCK_UN)
         self._thread.release()
 
 
 _UNTRUSTED_RUN = _OneRunAtATime()
 _SURVIVORS = []  # set when a run's processes could not be killed: no run begins after it
+_LIVE = set()  # the runs of this process whose processes may be alive (end_every_run)
+
+
+def end_every_run():
+    """Kill every run this process started and has not ended, with all its processes (each in a session of its
+    own, so the end of this process's own group misses them): for a grader told to stop (SIGTERM, the check
+    cell's interrupt on macOS and Linux; on Windows the end of its process tree takes them)."""
+    for worker in list(_LIVE):
+        kill_tree(worker.process)
 
 
 class Budget:
@@ -167,16 +179,9 @@ def wall_limit(time_limit):
 
 def limit_own_memory(limit=GRADER_MEMORY_LIMIT):
     """Put this (the trusted) process under an address-space limit of ``limit`` bytes, unless a
-    lower one is already set; returns the limit in force (None on Windows, which has no such limit)."""
-    if resource is None:
-        return None
-    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-    if hard != resource.RLIM_INFINITY:
-        limit = min(limit, hard)
-    if soft == resource.RLIM_INFINITY or soft > limit:
-        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
-        soft = limit
-    return soft
+    lower one is already set; returns the limit in force (None where the system has or takes no such
+    limit: Windows, and macOS, which refuses a finite one: ``set_limit``)."""
+    return set_limit("RLIMIT_AS", limit, hard=False)
 
 
 class Sandbox:
@@ -272,8 +277,11 @@ class Sandbox:
         """Hold the machine's one turn for student code (the module docstring) around a whole
         preview: the student's own code runs there in several processes at once (its runs and the
         servers of its own kit, one student's code and no hidden input), and none of them takes
-        the turn itself, so none overlaps another grading's runs."""
-        _UNTRUSTED_RUN.acquire()
+        the turn itself, so none overlaps another grading's runs. Unsandboxed (the student edition's
+        preview: the student's own code, as the student, with nothing hidden from it) there is no
+        other grading's run to keep it apart from: the turn is this process's only, with no lock file
+        and no writable home (a JupyterHub's may be read-only)."""
+        _UNTRUSTED_RUN.acquire(machine_wide=self.isolated)
         try:
             if _SURVIVORS:
                 raise RuntimeError(f"no run begins: {_SURVIVORS[0]}")
@@ -295,7 +303,7 @@ class WorkerProcess:
         self.started = time.monotonic()
         self.deadline = self.started + wall_limit(time_limit)
         self.begun = self._holding = self._budget_bound = self._killed = False
-        self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-")
+        self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-", ignore_cleanup_errors=True)
         self._token = uuid.uuid4().hex
         self._run_folder = self._init = self.group = None
         self.memory_peak = None  # bytes the whole run held at most, where it ran in a cgroup
@@ -335,6 +343,7 @@ class WorkerProcess:
             finally:
                 for fd in fds:
                     os.close(fd)
+            _LIVE.add(self)
             self._pipes = Pipes(self.process.stdin, self.process.stdout)  # every read and write has a deadline
             if self._run_folder is not None:
                 self._watcher = threading.Thread(target=self._watch_disk, daemon=True)
@@ -459,6 +468,7 @@ class WorkerProcess:
                 stream.close()
             self._scratch.cleanup()
         finally:
+            _LIVE.discard(self)
             if self.begun and self.budget is not None:
                 self.budget.spend(time.monotonic() - self.started)
                 self.budget = None

@@ -296,8 +296,8 @@ def test_a_preview_holds_the_machines_turn_while_any_process_of_it_runs(wrong_ed
     turn, held, seen = sandbox._UNTRUSTED_RUN, [False], []
 
     class Recorded:
-        def acquire(self):
-            turn.acquire()
+        def acquire(self, machine_wide=True):
+            turn.acquire(machine_wide)
             held[0] = True
 
         def release(self):
@@ -356,9 +356,13 @@ def test_an_interrupt_ends_the_graders_subprocess(monkeypatch):
         def __init__(self, *args, **kwargs):
             super().__init__(*args, **kwargs)
             started.append(self)
+            self.waits = 0
 
-        def communicate(self, *args, **kwargs):
-            raise KeyboardInterrupt
+        def poll(self):  # the check waits in short steps (issue 39): the interrupt comes during the first
+            self.waits += 1
+            if self.waits == 1:
+                raise KeyboardInterrupt
+            return super().poll()
 
     monkeypatch.setattr(check_cell.subprocess, "Popen", Interrupted)
     with pytest.raises(KeyboardInterrupt):
