@@ -4,10 +4,17 @@ The facts are written once: points per TODO and per check in the TODO table
 (``hwlib/machinery/todos.py``), the episode cap, the convergence deadline and the other settings in
 ``hwlib/settings.py``. This tool derives from them every place that states one in words: the
 notebooks' Todo headings ("(10 pts)") and rubric tables, the points table of ``docs/grading.md``, the
-totals in the README and docs, the settings' tables (``settings.py``, ``policy_search.py``), and the prose that names the
-episode cap or the deadline. ``--check`` changes nothing and exits 1 (listing the files) where a
-file is not what the facts give. Notebooks' stored outputs are not touched: when a fact changes
-what a cell prints, re-store the notebook executed (docs/development.md).
+totals in the README and docs, the settings' tables (``settings.py``, ``policy_search.py``), the
+known mistakes' diagnoses (``instructor/wrong_solutions/``) and the prose anywhere in the README,
+``docs/``, ``hwlib/``, ``hwtools/`` and ``instructor/`` that names the episode cap or the deadline.
+Notebooks' stored outputs are not touched: when a fact changes what a cell prints, re-store the
+notebook executed (docs/development.md).
+
+``--check`` changes nothing and exits 1, listing each problem, where a file is not what the facts
+give, where the episode cap or the automatic points' total is written as a literal that no fact
+derives (in code, templates or prose: ``literals``), or where the points table disagrees with
+itself or with the grader's checks (a check renamed in one of them: ``table_problems``). The
+release tools and the class run refuse to start on any of these (``instructor/gate.py``).
 """
 
 from __future__ import annotations
@@ -17,14 +24,28 @@ import json
 import re
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 from hwtools import facts as fact_files
+from instructor.kit import kit_files
 
 KIT = fact_files.KIT
 NOTEBOOKS = ("notebooks/p1_cartpole_finite_difference.ipynb", "notebooks/p2_food_cutting_logistic_regression.ipynb")
-TEXTS = ("README.md", "docs/grading.md", "docs/instructor.md", "docs/student-README.md", "docs/development.md",
-         "hwlib/settings.py", "hwlib/cartpole.py", "hwlib/policy_search.py", "hwlib/machinery/todos.py")
+WRITTEN = ("README.md", "docs/", "hwlib/", "hwtools/", "instructor/")  # where the texts it writes live
+SUFFIXES = (".md", ".py", ".j2", ".txt")
+# Where a literal cap or total is not looked for: the tests (they read the offering; the variant run in
+# tests/instructor/test_variant.py proves it) and the dated measurements (each states its day's offering).
+UNSCANNED = ("tests/", "benchmarks/RESULTS.md")
+# The one place itself: the line of hwlib/settings.py that sets the cap.
+THE_ONE_PLACE = (str(fact_files.SETTINGS), re.compile(r"^MAX_EPISODE_STEPS = "))
 NUMBER = r"\d+(?:\.\d+)?"
+
+
+def texts(kit):
+    """The kit's files this tool writes facts into: its notebooks and every text file of ``WRITTEN``."""
+    names = kit_files(kit)
+    return [name for name in NOTEBOOKS if name in names] + \
+        [name for name in names if name.startswith(WRITTEN) and name.endswith(SUFFIXES)]
 
 
 def number(value):
@@ -35,11 +56,15 @@ def number(value):
 class Facts:
     """The facts of the kit at ``kit``: its TODO table and its settings."""
 
-    def __init__(self, kit):
-        table = fact_files.load(kit, fact_files.TABLE)
+    def __init__(self, kit, auto=None, **settings):
+        """``auto`` and ``settings`` (``MAX_EPISODE_STEPS=...``) stand in for the kit's own (``literals``)."""
+        self.table = fact_files.load(kit, fact_files.TABLE)
         self.settings = fact_files.load(kit, fact_files.SETTINGS)
-        self.todos = {todo.id: todo for todo in table.TODOS}
-        self.auto, self.manual = table.AUTO_POINTS, table.MANUAL_POINTS
+        if settings:
+            self.settings = SimpleNamespace(**{**vars(self.settings), **settings})
+        self.todos = {todo.id: todo for todo in self.table.TODOS}
+        self.auto = self.table.AUTO_POINTS if auto is None else auto
+        self.manual = self.table.MANUAL_POINTS
         self.cap, self.deadline = self.settings.MAX_EPISODE_STEPS, self.settings.CONVERGENCE_DEADLINE
 
     def total(self, todo):
@@ -70,12 +95,13 @@ def _prose(text, facts):
         (rf"(auto total \(/){NUMBER}(\))", lambda m: f"{m[1]}{number(facts.auto)}{m[2]}"),
         (rf"(?<![\w.]){NUMBER}( points in all| manual points)", lambda m: f"{number(facts.manual)}{m[1]}"),
         (rf"(`(\d\.\d\.\d) by hand: [^`(]*\(/){NUMBER}(\)`)", lambda m: f"{m[1]}{number(facts.todos[m[2]].manual)}{m[3]}"),
-        (r"(converges? within )\d+( iterations)", lambda m: f"{m[1]}{deadline}{m[2]}"),
+        (r"(converges? within |stay within |climbing after )\d+( iterations)", lambda m: f"{m[1]}{deadline}{m[2]}"),
         (r"(above 99% within )\d+( iterations)", lambda m: f"{m[1]}{facts.settings.TARGET_ITERATIONS}{m[2]}"),
     ]
     for before, after in [("or ", " steps pass"), (r"total reward is \*\*", r"\*\*"), ("all ", " steps"),
                           ("maximum of ", ""), ("percentage at ", ""), ("balance for all ", ""), ("often all ", " but"),
                           ("for instance ", " on every one"), ("policies at ", ""), ("reaches ", " within"),
+                          ("reaches ", " and falls"), ("reached ", " to stay"), ("settles at reward ", ""),
                           (r"``settings.MAX_EPISODE_STEPS`` \(", r"\)")]:
         rules.append((rf"(?<![\w.])({before})\d+({after})(?!\d)", lambda m: f"{m[1]}{cap}{m[2]}"))
     settings = facts.settings
@@ -172,10 +198,8 @@ def rewrite(relative, text, facts):
 def run(kit=KIT, check=False):
     """Rewrite (or, with ``check``, only compare) every file; returns the files that differed."""
     kit, facts, changed = Path(kit), Facts(kit), []
-    for relative in NOTEBOOKS + TEXTS:
+    for relative in texts(kit):
         path = kit / relative
-        if not path.is_file():
-            continue
         text = path.read_text(encoding="utf-8")
         new = rewrite(relative, text, facts)
         if new != text:
@@ -185,15 +209,77 @@ def run(kit=KIT, check=False):
     return changed
 
 
+def _scanned_lines(kit, relative, facts):
+    """(where, line) of a kit file as ``facts`` would write it: a notebook's cell sources (not its
+    outputs, which a run writes), any other text file's lines."""
+    text = (kit / relative).read_text(encoding="utf-8")
+    if relative in NOTEBOOKS or relative.startswith(WRITTEN) and relative.endswith(SUFFIXES):
+        text = rewrite(relative, text, facts)
+    if relative.endswith(".ipynb"):
+        for number, cell in enumerate(json.loads(text)["cells"], start=1):
+            for line in "".join(cell["source"]).splitlines():
+                yield f"{relative}, cell {number}", line
+        return
+    for number, line in enumerate(text.splitlines(), start=1):
+        yield f"{relative}:{number}", line
+
+
+def literals(kit=KIT):
+    """Where the kit writes the episode cap or the automatic points' total as a literal: a number
+    that stays as it is when the fact changes (the file is read as this tool would write it with
+    other values of both), in every text file of the kit but ``UNSCANNED``. Code reads them
+    (``settings.MAX_EPISODE_STEPS``, ``AUTO_POINTS``); prose states them where a rule above writes them."""
+    kit, facts = Path(kit), Facts(kit)
+    other = Facts(kit, auto=facts.auto + 100_003, MAX_EPISODE_STEPS=facts.cap + 100_003)
+    wanted = [("the episode cap", number(facts.cap), "settings.MAX_EPISODE_STEPS"),
+              ("the automatic points' total", number(facts.auto), "AUTO_POINTS of hwlib/machinery/todos.py")]
+    found = []
+    for relative in kit_files(kit):
+        if relative.startswith(UNSCANNED) or not relative.endswith((*SUFFIXES, ".ipynb", ".toml", ".sh", ".cfg")):
+            continue
+        for where, line in _scanned_lines(kit, relative, other):
+            if relative == THE_ONE_PLACE[0] and THE_ONE_PLACE[1].match(line):
+                continue
+            for what, value, name in wanted:
+                if re.search(rf"(?<![\w.,-]){re.escape(value)}(?![\w,]|\.\d)", line):
+                    found.append(f"{where}: {what} {value} written as a literal ({line.strip()[:80]!r}): code reads "
+                                 f"{name}; prose gets it from a rule of instructor/facts.py")
+    return found
+
+
+def table_problems(kit=KIT):
+    """What makes the kit's points table disagree with itself or with the grader's checks (a check
+    renamed or missing in one of them, points that do not add up, a hidden behaviour without a
+    visible twin): ``hwtools.grade.checks.points_table_problems``, the grader's own refusal."""
+    from hwtools.grade import checks  # noqa: PLC0415 - numpy, only for the check
+    from hwtools.grade.grader import load_hidden_checks  # noqa: PLC0415
+
+    kit = Path(kit)
+    hidden = load_hidden_checks(kit)
+    cases = {todo: checks.case_set(todo, hidden) for todo in checks.GRADED_TODOS}
+    return checks.points_table_problems(cases, Facts(kit).table.TODOS)
+
+
+def problems(kit=KIT):
+    """Everything ``--check`` reports, in words: stale files, literals, the points table."""
+    stale = [f"{relative}: out of date (python -m instructor.facts writes it)" for relative in run(kit, check=True)]
+    return stale + literals(kit) + [f"points table: {problem}" for problem in table_problems(kit)]
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(prog="python -m instructor.facts", description=__doc__.split("\n\n")[0])
     parser.add_argument("kit", nargs="?", default=str(KIT), help="the kit's folder (default: this kit)")
-    parser.add_argument("--check", action="store_true", help="change nothing; exit 1 where a file disagrees with the facts")
+    parser.add_argument("--check", action="store_true",
+                        help="change nothing; exit 1 where a file disagrees with the facts, a cap or total is a literal, "
+                             "or the points table disagrees with itself or the grader's checks")
     args = parser.parse_args(argv)
-    changed = run(args.kit, args.check)
-    for relative in changed:
-        print(f"{'out of date' if args.check else 'rewrote'}: {relative}")
-    return 1 if changed and args.check else 0
+    if not args.check:
+        for relative in run(args.kit):
+            print(f"rewrote: {relative}")
+    found = problems(args.kit)
+    for problem in found:
+        print(problem)
+    return 1 if found else 0
 
 
 if __name__ == "__main__":
