@@ -20,6 +20,8 @@ release tools and the class run refuse to start on any of these (``instructor/ga
 from __future__ import annotations
 
 import argparse
+import copy
+import dataclasses
 import json
 import re
 import sys
@@ -33,11 +35,14 @@ KIT = fact_files.KIT
 NOTEBOOKS = ("notebooks/p1_cartpole_finite_difference.ipynb", "notebooks/p2_food_cutting_logistic_regression.ipynb")
 WRITTEN = ("README.md", "docs/", "hwlib/", "hwtools/", "instructor/")  # where the texts it writes live
 SUFFIXES = (".md", ".py", ".j2", ".txt")
-# Where a literal cap or total is not looked for: the tests (they read the offering; the variant run in
-# tests/instructor/test_variant.py proves it) and the dated measurements (each states its day's offering).
-UNSCANNED = ("tests/", "benchmarks/RESULTS.md")
-# The one place itself: the line of hwlib/settings.py that sets the cap.
-THE_ONE_PLACE = (str(fact_files.SETTINGS), re.compile(r"^MAX_EPISODE_STEPS = "))
+# Where a literal cap or total is looked for: the kit's code and templates (a notebook's code cells, the known
+# mistakes' words), but not the tests (they read the offering; the variant run in tests/instructor/test_variant.py
+# proves it); prose is tests/instructor/test_facts.py's.
+CODE = (".py", ".j2", ".sh", ".toml", ".txt", ".ipynb")
+UNSCANNED = ("tests/",)
+THE_ONE_PLACE = (str(fact_files.SETTINGS), re.compile(r"^[A-Z][A-Z0-9_]* = "))  # the settings themselves
+CAP_WORDS = r"\b(?:step\w*|rewards?|episodes?|cap|converge\w*|maximum|balanc\w*)\b"  # a line about the cap
+SHIFT = 100_003  # moves every number of the facts to one no text states by chance
 NUMBER = r"\d+(?:\.\d+)?"
 
 
@@ -56,16 +61,27 @@ def number(value):
 class Facts:
     """The facts of the kit at ``kit``: its TODO table and its settings."""
 
-    def __init__(self, kit, auto=None, **settings):
-        """``auto`` and ``settings`` (``MAX_EPISODE_STEPS=...``) stand in for the kit's own (``literals``)."""
+    def __init__(self, kit):
         self.table = fact_files.load(kit, fact_files.TABLE)
         self.settings = fact_files.load(kit, fact_files.SETTINGS)
-        if settings:
-            self.settings = SimpleNamespace(**{**vars(self.settings), **settings})
         self.todos = {todo.id: todo for todo in self.table.TODOS}
-        self.auto = self.table.AUTO_POINTS if auto is None else auto
-        self.manual = self.table.MANUAL_POINTS
+        self.auto, self.manual = self.table.AUTO_POINTS, self.table.MANUAL_POINTS
         self.cap, self.deadline = self.settings.MAX_EPISODE_STEPS, self.settings.CONVERGENCE_DEADLINE
+
+    def shifted(self):
+        """These facts with every number (each setting, each TODO's and each check's points, the
+        totals) moved by ``SHIFT``: a number that stays when this tool writes them is derived from none."""
+        def move(value):
+            return value + SHIFT if isinstance(value, (int, float)) and not isinstance(value, bool) else value
+
+        other = copy.copy(self)
+        other.settings = SimpleNamespace(**{name: move(value) for name, value in vars(self.settings).items()})
+        other.todos = {todo.id: dataclasses.replace(todo, auto=move(todo.auto), manual=move(todo.manual),
+                                                    checks=tuple((key, move(points)) for key, points in todo.checks))
+                       for todo in self.todos.values()}
+        other.auto, other.manual = move(self.auto), move(self.manual)
+        other.cap, other.deadline = move(self.cap), move(self.deadline)
+        return other
 
     def total(self, todo):
         return self.todos[todo].auto + self.todos[todo].manual
@@ -210,39 +226,44 @@ def run(kit=KIT, check=False):
 
 
 def _scanned_lines(kit, relative, facts):
-    """(where, line) of a kit file as ``facts`` would write it: a notebook's cell sources (not its
-    outputs, which a run writes), any other text file's lines."""
+    """(where, line as ``facts`` would write it, line as it is) of a kit file: a notebook's code cells
+    (not its prose, nor its outputs, which a run writes), any other file's lines."""
     text = (kit / relative).read_text(encoding="utf-8")
-    if relative in NOTEBOOKS or relative.startswith(WRITTEN) and relative.endswith(SUFFIXES):
-        text = rewrite(relative, text, facts)
+    written = rewrite(relative, text, facts) if relative in NOTEBOOKS or relative.startswith(WRITTEN) and \
+        relative.endswith(SUFFIXES) else text
     if relative.endswith(".ipynb"):
-        for number, cell in enumerate(json.loads(text)["cells"], start=1):
-            for line in "".join(cell["source"]).splitlines():
-                yield f"{relative}, cell {number}", line
+        for number, (cell, was) in enumerate(zip(json.loads(written)["cells"], json.loads(text)["cells"]), start=1):
+            if cell["cell_type"] == "code":
+                yield from ((f"{relative}, cell {number}", *lines) for lines in
+                            zip("".join(cell["source"]).splitlines(), "".join(was["source"]).splitlines()))
         return
-    for number, line in enumerate(text.splitlines(), start=1):
-        yield f"{relative}:{number}", line
+    for number, lines in enumerate(zip(written.splitlines(), text.splitlines()), start=1):
+        yield (f"{relative}:{number}", *lines)
 
 
 def literals(kit=KIT):
-    """Where the kit writes the episode cap or the automatic points' total as a literal: a number
-    that stays as it is when the fact changes (the file is read as this tool would write it with
-    other values of both), in every text file of the kit but ``UNSCANNED``. Code reads them
-    (``settings.MAX_EPISODE_STEPS``, ``AUTO_POINTS``); prose states them where a rule above writes them."""
+    """Where the kit's code and templates (``CODE``, but ``UNSCANNED``) write the episode cap or the
+    automatic points' total as a literal: its number where it stays when every fact changes (the file
+    read as this tool would write it with ``Facts.shifted``). Code reads them
+    (``settings.MAX_EPISODE_STEPS``, ``AUTO_POINTS``); words get them from a rule above."""
     kit, facts = Path(kit), Facts(kit)
-    other = Facts(kit, auto=facts.auto + 100_003, MAX_EPISODE_STEPS=facts.cap + 100_003)
-    wanted = [("the episode cap", number(facts.cap), "settings.MAX_EPISODE_STEPS"),
-              ("the automatic points' total", number(facts.auto), "AUTO_POINTS of hwlib/machinery/todos.py")]
+    other = facts.shifted()
+    cap, auto = re.escape(number(facts.cap)), re.escape(number(facts.auto))
+    wanted = [("the episode cap", number(facts.cap), "settings.MAX_EPISODE_STEPS",  # on a line about episodes
+               rf"(?<![\w.,-]){cap}(?![\w,]|\.\d)(?=.*?{CAP_WORDS})|{CAP_WORDS}.*?(?<![\w.,-]){cap}(?![\w,]|\.\d)"),
+              ("the automatic points' total", number(facts.auto), "AUTO_POINTS of hwlib/machinery/todos.py",
+               rf"(?<![\w.,-]){auto}(?:/{auto})?\s*(?:points?|pts)\b|/{auto}\b|(?<![\w.])\b{auto}/|"
+               rf"\b(?:score|total|earn\w*)\W{{1,15}}{auto}\b|[=!<>]=\s*{auto}\b|\w*(?:point|total|score)\w*\s*=\s*{auto}\b")]
     found = []
     for relative in kit_files(kit):
-        if relative.startswith(UNSCANNED) or not relative.endswith((*SUFFIXES, ".ipynb", ".toml", ".sh", ".cfg")):
+        if relative.startswith(UNSCANNED) or not relative.endswith(CODE):
             continue
-        for where, line in _scanned_lines(kit, relative, other):
+        for where, line, was in _scanned_lines(kit, relative, other):
             if relative == THE_ONE_PLACE[0] and THE_ONE_PLACE[1].match(line):
                 continue
-            for what, value, name in wanted:
-                if re.search(rf"(?<![\w.,-]){re.escape(value)}(?![\w,]|\.\d)", line):
-                    found.append(f"{where}: {what} {value} written as a literal ({line.strip()[:80]!r}): code reads "
+            for what, value, name, pattern in wanted:
+                if re.search(pattern, line, flags=re.I):
+                    found.append(f"{where}: {what} {value} written as a literal ({was.strip()[:80]!r}): code reads "
                                  f"{name}; prose gets it from a rule of instructor/facts.py")
     return found
 

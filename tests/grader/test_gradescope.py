@@ -323,18 +323,18 @@ def test_nothing_a_run_leaves_in_a_shared_place_reaches_a_later_run(bundle, layo
         for place in left:
             Path(place, "hwgrade-relay").unlink()
     assert "RELAYED" not in json.dumps(data), "a run read what an earlier run left"
-    assert data["score"] == cheat["points"] == 39 and not left
+    assert data["score"] == cheat["points"] == AUTO_POINTS and not left
 
 
 def test_student_code_never_runs_as_root(bundle, layout, tmp_path, docker, answer_key):
     submission, cheat = attack("runs_as_root", layout, answer_key)
     data, _ = autograde(bundle, tmp_path, submission, docker)
-    assert points_tests(data)["2.2.1"]["score"] == 0 and data["score"] == cheat["points"] == 37
+    assert points_tests(data)["2.2.1"]["score"] == 0 and data["score"] == cheat["points"]
 
 
 def test_where_no_sandbox_works_no_student_code_runs_and_results_json_says_the_autograder_is_misconfigured(
         bundle, layout, tmp_path, broken, answer_key):
-    """Fail closed: the attack that rewrote results.json as root in such a container (score 39)
+    """Fail closed: the attack that rewrote results.json as root in such a container (every point)
     never runs; the student gets 0 and "misconfigured", the instructor the reason and the fix."""
     submission, _ = attack("results_overwrite", layout, answer_key)
     marker = Path("/tmp/hwgrade-overwrite-" + hashlib.sha256(str(tmp_path / "autograder").encode()).hexdigest()[:12])

@@ -334,11 +334,13 @@ def test_every_todo_has_a_solution_calling_each_earlier_todos_function_it_could_
 def parse_cheat(path):
     text = path.read_text(encoding="utf-8")
     header, *sections = re.split(r"^(# --- .*)$", text, flags=re.M)
-    cheat = {"points": 0.0, "others": "stub", "expect": [], "bodies": {}, "files": {}, "prepend": {}, "links": [],
-             "hardcode": []}
-    for key, value in re.findall(r"^# (\w+):\s*(.*)$", header, flags=re.M):
+    cheat = {"others": "stub", "expect": [], "bodies": {}, "files": {}, "prepend": {}, "links": [], "hardcode": [],
+             "keeps": []}
+    for key, value in re.findall(r"^# (\w+):[ \t]*(.*)$", header, flags=re.M):
         if key == "points":
-            cheat["points"] = float(value)
+            raise ValueError(f"{path.name}: '# points:' states an absolute score; say what it keeps of its TODO (# keeps:)")
+        if key == "keeps":
+            cheat["keeps"] = value.split()
         elif key == "others":
             cheat["others"] = value.strip()
         elif key == "expect":
@@ -361,7 +363,19 @@ def parse_cheat(path):
         elif kind == "hardcode":
             cheat["hardcode"].append(target.strip())
     cheat.setdefault("loses", list(cheat["bodies"]))  # the TODOs whose points it may cost (default: its own)
+    cheat["points"] = cheat_points(cheat, path.name)
     return cheat
+
+
+def cheat_points(cheat, name):
+    """What a cheat must earn, from the TODO table: with ``others: reference`` every TODO it may not
+    cost keeps its points; each TODO it may cost keeps only its checks named in ``# keeps:``."""
+    costly = {f"{todo}/{key}": points for todo in cheat["loses"] for key, points in TODO_BY_ID[todo].checks}
+    unknown = sorted(set(cheat["keeps"]) - set(costly))
+    if unknown:
+        raise ValueError(f"{name}: keeps {', '.join(unknown)}, not a check of a TODO it may cost ({', '.join(costly)})")
+    others = sum(todo.auto for todo in TODO_BY_ID.values() if todo.id not in cheat["loses"]) if cheat["others"] == "reference" else 0
+    return others + sum(costly[check] for check in cheat["keeps"])
 
 
 def hardcoded_body(todo, key):
