@@ -430,6 +430,19 @@ def build_cheat(layout, cheat, folder, answer_key):
 CHEAT_FILES = sorted(CHEATS.glob("*.txt"))
 
 
+@pytest.mark.offering
+def test_a_cheat_states_what_it_keeps_of_its_todo_not_a_score(tmp_path):
+    """What a cheat must earn follows from the TODO table, so a next offering's points change it too."""
+    points = {path.stem: parse_cheat(path)["points"] for path in CHEATS.rglob("*.txt")}
+    assert points["unseeded_flags"] == AUTO_POINTS - TODO_BY_ID["1.3.1"].check_points["repeatable"]
+    assert points["tmp_relay"] == AUTO_POINTS and points["endless_loop"] == AUTO_POINTS - TODO_BY_ID["2.2.1"].auto
+    assert points["holdback_hidden"] == 0  # others: stub
+    for header, said in (("# points: 37\n# others: reference\n", "absolute score"), ("# keeps: 2.2.2/with-bias\n", "not a check")):
+        (tmp_path / "cheat.txt").write_text(f"# cheat: x\n{header}# --- todo 2.2.1\nvalues = z\n", encoding="utf-8")
+        with pytest.raises(ValueError, match=said):
+            parse_cheat(tmp_path / "cheat.txt")
+
+
 def test_there_are_at_least_ten_cheats():
     assert len(CHEAT_FILES) >= 10
 

@@ -13,6 +13,7 @@ from hwtools.grade.grader import Grader, GradingError
 from hwtools.todos import AUTO_POINTS, TODO_BY_ID, TODOS
 
 KIT = Path(__file__).resolve().parents[2]
+pytestmark = pytest.mark.offering  # also run on the variant offering (test_variant.py)
 
 
 def _cases():

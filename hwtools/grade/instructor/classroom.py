@@ -9,6 +9,10 @@ notebooks), at the top or up to two folders down (``bob.zip`` holding ``bob/hwli
 without their ``hwlib/`` folder) is read as ``hwlib/``, and a folder whose only content is one
 ``.zip`` is read as that zip.
 
+The command line refuses, before it writes anything, a kit the release gate finds not ready
+(``instructor/gate.py``: its facts out of date or written as literals, a points table that
+disagrees, an answer key older than the known mistakes).
+
 Nothing in a submission is trusted: ``submissions.py`` reads it (what is copied, what rejects
 it), and the student's code then runs only in the grader's sandbox. This module runs the class:
 it grades the submissions, saves each result, and writes the gradebook (``gradebook.py``) and
@@ -328,6 +332,15 @@ def main(args, parser):
         if not has_solutions(KIT_ROOT):
             parser.error("grading a class needs the instructor's kit: pass --reference KIT_DIR")
         reference = KIT_ROOT
+    try:  # the release gate (instructor/gate.py): a kit not ready to grade with is refused before anything is written
+        from instructor import gate  # noqa: PLC0415 - the instructor's kit's own tools
+    except ImportError:
+        parser.error("grading a class needs the instructor's kit's instructor/ folder (its release gate)")
+    try:
+        gate.check(reference, "the class run")
+    except gate.Refused as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     try:
         report = grade_class(args.submission, args.gradebook, args.feedback, reference, jobs=args.jobs,
                              progress=sys.stderr, python=args.python, isolation=args.isolation,
