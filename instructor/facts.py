@@ -12,7 +12,7 @@ notebook executed (docs/development.md).
 
 ``--check`` changes nothing and exits 1, listing each problem, where a file is not what the facts
 give, where the episode cap or the automatic points' total is written as a literal that no fact
-derives (in code, templates or prose: ``literals``), or where the points table disagrees with
+derives (in code and templates: ``literals``), or where the points table disagrees with
 itself or with the grader's checks (a check renamed in one of them: ``table_problems``). The
 release tools and the class run refuse to start on any of these (``instructor/gate.py``).
 """
@@ -256,13 +256,14 @@ def literals(kit=KIT):
                rf"\b(?:score|total|earn\w*)\W{{1,15}}{auto}\b|[=!<>]=\s*{auto}\b|\w*(?:point|total|score)\w*\s*=\s*{auto}\b")]
     found = []
     for relative in kit_files(kit):
-        if relative.startswith(UNSCANNED) or not relative.endswith(CODE):
+        if relative.startswith(UNSCANNED) or not relative.endswith(CODE) or \
+                not any(value in (kit / relative).read_text(encoding="utf-8") for _, value, _, _ in wanted):
             continue
         for where, line, was in _scanned_lines(kit, relative, other):
             if relative == THE_ONE_PLACE[0] and THE_ONE_PLACE[1].match(line):
                 continue
             for what, value, name, pattern in wanted:
-                if re.search(pattern, line, flags=re.I):
+                if value in line and re.search(pattern, line, flags=re.I):
                     found.append(f"{where}: {what} {value} written as a literal ({was.strip()[:80]!r}): code reads "
                                  f"{name}; prose gets it from a rule of instructor/facts.py")
     return found

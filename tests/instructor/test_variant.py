@@ -4,8 +4,8 @@ the hidden checks one more hidden input for it and another seed; the settings ca
 facts written by ``python -m instructor.facts``, as docs/instructor.md's term steps say. Then:
 
 * the release re-runs every known mistake under the new facts and refuses, naming each that no longer
-  loses points (from this kit's 500-step cap: ``learning_rate_too_large``, whose rate converges at
-  200 steps), before writing anything; each it names earns every point of its TODO in the variant's
+  loses points (from this kit's cap to 200 steps: ``learning_rate_too_large``, whose rate then
+  converges), before writing anything; each it names earns every point of its TODO in the variant's
   grade; the instructor deletes them, and the student edition is built;
 * the variant's reference earns every point, a known mistake of 1.2.1 keeps <= 30%;
 * the kit's offering-dependent tests (``-m offering``: the tests that read the facts, chosen cheap)
