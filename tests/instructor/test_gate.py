@@ -100,3 +100,19 @@ def test_every_release_and_the_class_run_refuse_a_stale_fact_with_one_message_an
             assert not out.exists() and not (tmp_path / "feedback").exists()
     finally:
         settings.write_text(kept, encoding="utf-8")
+
+
+def test_the_release_check_names_every_problem_it_finds(kit):
+    """``python -m instructor.release check``: here a points table off by one point (the grader, which
+    would run every known mistake, refuses such a table: it is not started) and a stale fact."""
+    table = kit / "hwlib/machinery/todos.py"
+    kept = table.read_text(encoding="utf-8")
+    check, points = TODO_BY_ID["1.2.1"].checks[0]
+    table.write_text(kept.replace(f'("{check}", {points:g})', f'("{check}", {points + 1:g})'), encoding="utf-8")
+    try:
+        done = _run(kit, "-m", "instructor.release", "check")
+    finally:
+        table.write_text(kept, encoding="utf-8")
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    assert done.stderr.startswith("error: the release refused: 2 problem(s)")
+    assert "docs/grading.md: out of date" in done.stderr and "points table: TODO 1.2.1: its checks add up to" in done.stderr
