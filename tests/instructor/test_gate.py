@@ -37,6 +37,7 @@ def _run(kit, *args):
                           env={**env, "PYTHONPATH": str(kit), "MPLBACKEND": "Agg"})
 
 
+@pytest.mark.quick
 @pytest.mark.offering
 def test_a_known_mistake_that_fails_no_check_with_points_is_named():
     todo = TODO_BY_ID["1.2.1"]
@@ -50,6 +51,7 @@ def test_a_known_mistake_that_fails_no_check_with_points_is_named():
     assert "instructor/wrong_solutions/fails_nothing.txt" in found[0] and "no longer loses points" in found[0]
 
 
+@pytest.mark.quick
 @pytest.mark.offering
 def test_an_answer_key_older_than_the_known_mistakes_is_found(tmp_path):
     kit = KIT
