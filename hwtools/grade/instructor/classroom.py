@@ -345,6 +345,11 @@ def main(args, parser):
         if not has_solutions(KIT_ROOT):
             parser.error("grading a class needs the instructor's kit: pass --reference KIT_DIR")
         reference = KIT_ROOT
+    try:
+        roster = read_roster(args.roster) if args.roster else None
+    except RosterError as error:
+        print(f"error: --roster {error}", file=sys.stderr)
+        return 2
     try:  # the release gate (instructor/gate.py): a kit not ready to grade with is refused before anything is written
         from instructor import gate  # noqa: PLC0415 - the instructor's kit's own tools
     except ImportError:
@@ -355,14 +360,10 @@ def main(args, parser):
         print(f"error: {error}", file=sys.stderr)
         return 2
     try:
-        roster = read_roster(args.roster) if args.roster else None
         report = grade_class(args.submission, args.gradebook, args.feedback, reference, jobs=args.jobs,
                              progress=sys.stderr, roster=roster, assignment=args.assignment, python=args.python,
                              isolation=args.isolation, time_limit=args.time_limit,
                              memory_limit=args.memory_limit * 2**20)
-    except RosterError as error:
-        print(f"error: --roster {error}", file=sys.stderr)
-        return 2
     except GradingError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
