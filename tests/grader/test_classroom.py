@@ -143,6 +143,8 @@ def a_class(tmp_path_factory, grader, layout, answer_key):
 
     # Wrong solutions, zipped one folder down: its own TODO loses, every other keeps its points.
     for name, kept in WRONG_KEPT.items():
+        if not (proof.WRONG / f"{name}.txt").is_file():  # an offering deleted it (the release named it: no longer a mistake)
+            continue
         todo, _, bodies = proof.parse_wrong_solution(proof.WRONG / f"{name}.txt")
         kit = kits.write_submission(layout, scratch / "wrong" / name / "hw1", {todo: bodies}, others="reference")
         zip_folder(kit.parent, folder / f"wrong-{name}.zip")
