@@ -84,17 +84,19 @@ def test_a_changed_fact_reaches_every_place_that_states_it(tmp_path):
     settings, new, todo = NOW.settings, _moved(), TODO_BY_ID["1.2.1"]
     grid, episodes = settings.LANDSCAPE_GRID_SIZE, settings.LANDSCAPE_NUM_EPISODES
     problem_1 = sum(NOW.total(other) for other in NOW.todos if other.startswith("1."))
-    # The old cap (on a line about episodes: a count of forks may equal it), the old deadline, the old totals:
-    # none may be left where a fact is stated.
+    # The old cap (on a line about episodes: a count of forks may equal it), the old total (on a line about
+    # points: a time may equal it), the old deadline, the old points: none may be left where a fact is stated.
     cap = rf"(?<![\d.±+-]){NOW.cap}(?![\d.])"
-    old = (rf"within {NOW.deadline} iterations|\b{NOW.auto:g}\b|\({NOW.total('1.2.1'):g} pts\)"
+    total, points = rf"(?<![\d.]){NOW.auto:g}(?![\d.])", r"\b(?:points?|pts|total|score)\b|/"
+    old = (rf"within {NOW.deadline} iterations|\({NOW.total('1.2.1'):g} pts\)"
            rf"|problem 1, {problem_1:g} points|\b{settings.NUM_RANDOM_POLICIES} (rew|par|\s*ran)"
            rf"|\b{settings.NUM_ROLLOUTS} (start states|episodes per|fresh)|h = {settings.FD_STEP:g}\b|\b{grid} ×|× {grid}\b"
            rf"|{grid * grid * episodes:,}|\b{episodes} (episodes|start|fixed)")
     stale = []
     for relative in DOCS + list(facts_tool.NOTEBOOKS) + ["hwlib/settings.py"] + known:
         stale += [f"{relative}: {line.strip()[:150]}" for line in _prose(kit, relative).splitlines() if "2.1.1" not in line
-                  and (re.search(old, line) or re.search(cap, line) and re.search(facts_tool.CAP_WORDS, line, re.I))]
+                  and (re.search(old, line) or re.search(cap, line) and re.search(facts_tool.CAP_WORDS, line, re.I)
+                       or re.search(total, line) and re.search(points, line))]
     assert not stale, "stated but not derived from the one place:\n" + "\n".join(stale)
     notebook = _prose(kit, facts_tool.NOTEBOOKS[0])
     cap, deadline, auto = new["MAX_EPISODE_STEPS"], new["CONVERGENCE_DEADLINE"], NOW.auto + 3
