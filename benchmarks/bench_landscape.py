@@ -34,7 +34,7 @@ def first_balancing_theta(seed=0, num_candidates=400):
     return candidates[np.flatnonzero(np.all(rewards == MAX_EPISODE_REWARD, axis=1))[0]]
 
 
-# Two slices of different cost: through a balancing θ (a large plateau of 500-step episodes) and
+# Two slices of different cost: through a balancing θ (a large plateau of episodes that last to the cap) and
 # through the origin (most episodes end within a few dozen steps).
 THETAS = {
     "through a balancing θ (found by random search)": first_balancing_theta(),

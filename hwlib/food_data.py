@@ -208,7 +208,7 @@ SYNTHETIC_CLASS_COUNTS = (1918, 1480, 1562, 1290, 1404, 1521, 1483)
 # rate 0.1, raw features) climbs gradually the way the course reported for the real file.
 _LOUDNESS_STD = 12.8  # spread of the class loudness levels, per microphone
 _BURST_MEAN, _BURST_STD = 51.0, 12.8  # the knife going through the food
-_GAIN_STD = 8.1  # per-cut microphone gain, the same for all 40 steps
+_GAIN_STD = 8.1  # per-cut microphone gain, the same for each of its 40 steps
 _MIC_NOISE_STD = 9.0
 _FORCE_CLASS_STD = 5.7  # spread of the mean force/torque of the foods
 _PRESS_FORCE = 15.0  # the downward push every cut shares (fz)

@@ -176,8 +176,8 @@ class LandscapeFrame:
 
 
 def landscape_caption(landscape):
-    """The explorer's line under the picture, e.g. 'θ₃ across, θ₄ up; through θ = (0.50, -1.25, 0.00, 2.00);
-    41 × 41 cells × 5 episodes each; 17% of the cells score 500 on every episode'."""
+    """The explorer's line under the picture: its two axes, the θ it goes through, its cells and episodes per
+    cell, and the share of cells that score the maximum reward (the episode cap) on every episode."""
     horizontal, vertical = landscape.axes
     n = len(landscape.values)
     share = np.mean(landscape.mean_rewards == MAX_EPISODE_REWARD)

@@ -167,7 +167,7 @@ def parse_frontend_state(state):
 
 DEFAULT_SEED = 0
 PLAY_INTERVAL_MS = 50  # one animation frame every 0.05 s (20 frames per second) ...
-PLAY_FRAMES = 250  # ... and at most 250 frames per episode (a 500-step episode plays in 12.5 s)
+PLAY_FRAMES = 250  # ... and at most 250 frames per episode (so any episode plays in at most 12.5 s)
 FIGURE_DPI, FIGURE_WIDTH, FIGURE_HEIGHT = 80, 9.0, 4.4  # the panel's picture: 720 x 352 px
 
 

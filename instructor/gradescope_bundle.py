@@ -14,14 +14,17 @@ At the zip's root:
   ``python -m hwtools.grade.instructor.gradescope_autograder`` and writes ``/autograder/results/results.json``. Paths
   come from ``AUTOGRADER_ROOT`` (default ``/autograder``) and ``AUTOGRADER_PYTHON`` (default the
   venv's Python), so that a test can run it in a temporary folder laid out like ``/autograder``;
-* what they need: the instructor's ``hwlib/`` (the reference solution), ``hwtools/`` (the grader)
-  and ``instructor/hidden_checks/``. Not the notebooks, tests, benchmarks, data, the release tool
-  or the wrong solutions. The bundle stays with the instructor and Gradescope: it holds the
-  solutions and the hidden checks;
+* what they need: the instructor's ``hwlib/`` (the reference solution), ``hwtools/`` (the grader),
+  ``instructor/hidden_checks/`` and ``instructor/wrong_solutions/`` (the known mistakes: the grader
+  runs each on the visible checks, so that a student's feedback names the mistake their answers
+  match, as the preview and the class run do). Not the notebooks, tests, benchmarks, data or the
+  release tool. The bundle stays with the instructor and Gradescope: it holds the solutions and the
+  hidden checks;
 * ``hwgrade-bundle.json``: what the bundle is and holds (the grader deletes the reference from a
   container's disk only where it finds this file).
 
 The zip depends only on the kit's files (sorted, fixed time stamps): two builds are identical.
+A kit the release gate finds not ready (``instructor/gate.py``) is refused before anything is written.
 """
 
 from __future__ import annotations
@@ -35,7 +38,7 @@ from pathlib import Path
 from hwtools.grade.instructor.user_sandbox import GRADED_PACKAGES as GRADING_REQUIREMENTS  # what hwlib imports in the worker
 from instructor.kit import kit_files
 
-BUNDLED = ("hwlib/", "hwtools/", "instructor/hidden_checks/")  # path prefixes of the kit in the bundle
+BUNDLED = ("hwlib/", "hwtools/", "instructor/hidden_checks/", "instructor/wrong_solutions/")  # path prefixes of the kit
 LEFT_OUT = ("hwtools/grade/answer_key.json",)  # the student edition's key: the bundle grades with the reference
 FIXED_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -174,9 +177,12 @@ def add_parser(commands, default_source):
 
 
 def main(args):
+    from instructor import gate  # noqa: PLC0415 - the facts tool, only for the command
+
     try:
+        gate.check(args.source, "the Gradescope bundle")
         names = build_bundle(args.source, args.out_zip, force=args.force)
-    except BundleError as error:
+    except (BundleError, gate.Refused) as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
     print(f"Gradescope bundle: {len(names)} files in {args.out_zip} (instructor only: it holds the solutions and the "

@@ -37,6 +37,7 @@ INSTRUCTOR_ONLY = (
     "benchmarks/bench_classroom.py",
     "benchmarks/bench_dayone.py",  # it builds a student edition with the solutions kept
     "benchmarks/bench_similarity.py",  # the similarity report's: instructor-only, like the report itself
+    "benchmarks/bench_term.py",  # the instructor's term: the release, the bundle, a class run
 )
 
 # Only the homework holds solution blocks; tooling elsewhere (the grader) may talk about markers freely.

@@ -2,6 +2,12 @@
 
     python -m instructor.release student OUT_DIR [--source KIT_DIR] [--force] [--keep TODO ...]
     python -m instructor.release gradescope OUT.zip [--source KIT_DIR] [--force]   (see instructor/gradescope_bundle.py)
+    python -m instructor.release check [--source KIT_DIR]   (the release gate and every known mistake: instructor/gate.py)
+
+Both builds refuse, with one message and before writing anything, a kit that the release gate
+finds not ready (``instructor/gate.py``: facts out of date or written as literals, a points table
+that disagrees, an answer key older than the known mistakes); the student edition also refuses a
+known mistake that no longer loses points (its answer key runs every one).
 
 Solution code is fenced, in ``hwlib`` and in the notebooks' code cells, by comment lines
 
@@ -45,6 +51,7 @@ pair, nested markers, mismatched ids or a block without a TODO id stop the build
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import secrets
 import shutil
@@ -52,7 +59,7 @@ import sys
 from pathlib import Path
 
 from hwtools.todos import TODO_BY_ID
-from instructor import gradescope_bundle
+from instructor import gate, gradescope_bundle
 from instructor.given_files import transform_pyproject, transform_requirements
 from instructor.kit import (HOMEWORK_FOLDERS, INSTRUCTOR_ONLY, STUDENT_TESTS, ReleaseError, file_blocks, find_blocks,
                             is_instructor_only, kit_files, read_text)
@@ -137,9 +144,16 @@ def build_student_edition(source, out_dir, keep=frozenset(), replace=None, force
             target.chmod(0o755 if executable else 0o644)
         names = sorted(files)
         if answer_key:
-            from hwtools.grade import write_answer_key  # noqa: PLC0415 - only the full build needs the grader
+            from hwtools.grade import GradingError, write_answer_key  # noqa: PLC0415 - only the full build needs the grader
 
-            write_answer_key(source, building / ANSWER_KEY)
+            try:
+                write_answer_key(source, building / ANSWER_KEY)
+            except GradingError as error:  # the grader refuses the reference kit: one line, not a traceback
+                raise ReleaseError(f"the answer key cannot be written: {error}") from None
+            table = json.loads((building / ANSWER_KEY).read_text(encoding="utf-8"))["mistakes"]
+            losing_nothing = gate.mistakes_losing_nothing(table)
+            if losing_nothing:
+                raise ReleaseError(str(gate.Refused("the student edition", losing_nothing)))
             names = sorted([*names, ANSWER_KEY])
         _move_into_place(building, out_dir)
     except BaseException:
@@ -182,19 +196,45 @@ def main(argv=None):
     student.add_argument("--no-answer-key", action="store_true",
                          help="skip the grader's answer key (then the student edition's grader has nothing to compare with)")
     gradescope_bundle.add_parser(commands, Path(__file__).resolve().parents[1])
+    checked = commands.add_parser("check", help="the release gate (facts, points table, answer keys) and every known "
+                                                "mistake re-run on the visible checks under these facts; changes nothing")
+    checked.add_argument("--source", default=str(Path(__file__).resolve().parents[1]), help="the instructor's kit (default: this kit)")
     args = parser.parse_args(argv)
     if args.edition == "gradescope":
         return args.run(args)
+    if args.edition == "check":
+        return check_command(args.source)
     unknown = [todo for todo in args.keep if todo not in TODO_BY_ID]
     if unknown:
         parser.error(f"unknown TODO id(s) for --keep: {', '.join(unknown)}")
     try:
+        gate.check(args.source, "the student edition", skip=args.out_dir)
         names = build_student_edition(args.source, args.out_dir, keep=frozenset(args.keep), force=args.force,
                                       answer_key=not args.no_answer_key)
-    except ReleaseError as error:
+    except (ReleaseError, gate.Refused) as error:
         print(f"error: {error}", file=sys.stderr)
         return 1
     print(f"student edition: {len(names)} files in {args.out_dir}")
+    return 0
+
+
+def check_command(source):
+    """``python -m instructor.release check``: the gate, then every known mistake on the visible checks."""
+    from hwtools.grade import Grader, GradingError, checks  # noqa: PLC0415 - the grader only for this command
+
+    found = gate.problems(source)
+    if not any(problem.startswith("points table:") for problem in found):  # else the grader refuses to start
+        try:
+            with Grader(source) as grader:
+                table = [known for todo in checks.GRADED_TODOS for known in grader.known_mistakes(todo)]
+            found += gate.mistakes_losing_nothing(table)
+            print(f"{len(table)} known mistakes re-run on the visible checks", file=sys.stderr)
+        except GradingError as error:
+            found.append(f"the grader: {error}")
+    if found:
+        print(f"error: {gate.Refused('the release', found)}", file=sys.stderr)
+        return 1
+    print(f"{source}: ready to release (facts, points table, answer keys, known mistakes)")
     return 0
 
 

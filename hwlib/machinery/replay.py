@@ -25,7 +25,7 @@ Your own environment: ``gym.make("CartPole-v1")`` (or ``make_env()``) in the cod
 ``eval_params`` gives, in a kit run, a ``KitEnv``. Its ``reset`` starts where gymnasium's would; its
 first ``step`` ends the episode with the whole episode's reward, played in the batches for
 ``CartPoleLinearPolicy(params)``: code that adds up the rewards until ``terminated or truncated``
-gets the plain loop's number without stepping 500 times. Checked, not trusted: a call that does
+gets the plain loop's number without stepping to the cap. Checked, not trusted: a call that does
 anything else with it (another action than the policy's, a step after the end, a reset never
 seeded), fails, or meets an episode longer than any checked so far runs again on gymnasium's own
 environment, and that plain pass's number is the call's; where the two differ, the session makes

@@ -44,13 +44,22 @@ def visible_digest(cases):
     return digest.hexdigest()
 
 
-def write(expected, cases, out_path, known=()):
+def mistake_digest(wrong):
+    """A digest of one known mistake (a ``mistakes.WrongSolution``: its words and code): the key records
+    one per known mistake it was written with, so a newer or changed one shows (``instructor/gate.py``)."""
+    fields = [wrong.todo, wrong.file, wrong.mistake, wrong.diagnosis, wrong.rule, list(wrong.bodies)]
+    return hashlib.sha256(json.dumps(fields).encode()).hexdigest()[:16]
+
+
+def write(expected, cases, out_path, known=(), sources=()):
     """Write the key: ``expected`` {case id: {name: array}} of visible exact cases, ``known`` the
-    known mistakes' table (``mistakes.py``: signatures on the visible inputs, diagnoses)."""
+    known mistakes' table (``mistakes.py``: signatures on the visible inputs, diagnoses), ``sources``
+    the known mistakes it was made from (``WrongSolution``s: their digests are recorded)."""
     key = {"version": ANSWER_KEY_VERSION, "visible_cases": visible_digest(cases),
            "expected": {case_id: {name: _encode_array(value) for name, value in values.items()}
                         for case_id, values in expected.items()},
-           "mistakes": mistakes.encode(list(known), _encode_array)}
+           "mistakes": mistakes.encode(list(known), _encode_array),
+           "known_mistakes": {wrong.id: mistake_digest(wrong) for wrong in sources}}
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     out_path.write_text(json.dumps(key, sort_keys=True, separators=(",", ":")) + "\n", encoding="utf-8")

@@ -575,4 +575,5 @@ def write_answer_key(reference_kit, out_path, python=None, isolation="auto"):
                         raise GradingError(f"the reference fails visible check {case_id}: {result['error']}")
                     expected[case_id] = result["values"]
         known = [entry for todo in checks.GRADED_TODOS for entry in grader.known_mistakes(todo)]
-        return keys.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path, known)
+        return keys.write(expected, {todo: grader.cases[todo] for todo in checks.GRADED_TODOS}, out_path, known,
+                          grader.wrong_solutions)

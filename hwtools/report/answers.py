@@ -154,6 +154,7 @@ def answer_text(answers):
              "rewards": ", ".join(str(reward) for reward in entry["rewards"])}
             for entry in hand["tried"]
         ],
+        "max_reward": f"{MAX_EPISODE_REWARD:g}",  # the episode cap (hwlib/settings.py)
         "num_at_max": f"{rand['num_at_max']}",
         "num_policies": f"{rand['num_policies']}",
         "share_at_max": f"{rand['share_at_max']:.1%}",
@@ -212,7 +213,7 @@ def answers_markdown(answers, name=None):
         "",
         "### 1.1.3 Random policies",
         "",
-        f"- {text['num_at_max']} of {text['num_policies']} random policies reached the maximum reward of {MAX_EPISODE_REWARD}:"
+        f"- {text['num_at_max']} of {text['num_policies']} random policies reached the maximum reward of {text['max_reward']}:"
         f" **{text['share_at_max']}**",
         f"- median reward: {text['median_reward']}",
         "",
@@ -222,7 +223,7 @@ def answers_markdown(answers, name=None):
         "",
         f"- learning rate: **{text['learning_rate']}**",
         f"- final parameters: **{text['final_params']}**",
-        f"- converged ({MAX_EPISODE_REWARD} from then on) at iteration: **{text['converged_at']}** {text['converged_note']}",
+        f"- converged ({text['max_reward']} from then on) at iteration: **{text['converged_at']}** {text['converged_note']}",
         f"- reward per iteration: {text['rewards']}",
         "",
         f"Iteration 0 is before the first update; each reward is the mean of {text['num_rollouts']} episodes.",

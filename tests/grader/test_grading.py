@@ -347,11 +347,13 @@ def test_every_todo_has_a_solution_calling_each_earlier_todos_function_it_could_
 def parse_cheat(path):
     text = path.read_text(encoding="utf-8")
     header, *sections = re.split(r"^(# --- .*)$", text, flags=re.M)
-    cheat = {"points": 0.0, "others": "stub", "expect": [], "bodies": {}, "files": {}, "prepend": {}, "links": [],
-             "hardcode": []}
-    for key, value in re.findall(r"^# (\w+):\s*(.*)$", header, flags=re.M):
+    cheat = {"others": "stub", "expect": [], "bodies": {}, "files": {}, "prepend": {}, "links": [], "hardcode": [],
+             "keeps": []}
+    for key, value in re.findall(r"^# (\w+):[ \t]*(.*)$", header, flags=re.M):
         if key == "points":
-            cheat["points"] = float(value)
+            raise ValueError(f"{path.name}: '# points:' states an absolute score; say what it keeps of its TODO (# keeps:)")
+        if key == "keeps":
+            cheat["keeps"] = value.split()
         elif key == "others":
             cheat["others"] = value.strip()
         elif key == "expect":
@@ -374,7 +376,19 @@ def parse_cheat(path):
         elif kind == "hardcode":
             cheat["hardcode"].append(target.strip())
     cheat.setdefault("loses", list(cheat["bodies"]))  # the TODOs whose points it may cost (default: its own)
+    cheat["points"] = cheat_points(cheat, path.name)
     return cheat
+
+
+def cheat_points(cheat, name):
+    """What a cheat must earn, from the TODO table: with ``others: reference`` every TODO it may not
+    cost keeps its points; each TODO it may cost keeps only its checks named in ``# keeps:``."""
+    costly = {f"{todo}/{key}": points for todo in cheat["loses"] for key, points in TODO_BY_ID[todo].checks}
+    unknown = sorted(set(cheat["keeps"]) - set(costly))
+    if unknown:
+        raise ValueError(f"{name}: keeps {', '.join(unknown)}, not a check of a TODO it may cost ({', '.join(costly)})")
+    others = sum(todo.auto for todo in TODO_BY_ID.values() if todo.id not in cheat["loses"]) if cheat["others"] == "reference" else 0
+    return others + sum(costly[check] for check in cheat["keeps"])
 
 
 def hardcoded_body(todo, key):
@@ -427,6 +441,19 @@ def build_cheat(layout, cheat, folder, answer_key):
 
 
 CHEAT_FILES = sorted(CHEATS.glob("*.txt"))
+
+
+@pytest.mark.offering
+def test_a_cheat_states_what_it_keeps_of_its_todo_not_a_score(tmp_path):
+    """What a cheat must earn follows from the TODO table, so a next offering's points change it too."""
+    points = {path.stem: parse_cheat(path)["points"] for path in CHEATS.rglob("*.txt")}
+    assert points["unseeded_flags"] == AUTO_POINTS - TODO_BY_ID["1.3.1"].check_points["repeatable"]
+    assert points["tmp_relay"] == AUTO_POINTS and points["endless_loop"] == AUTO_POINTS - TODO_BY_ID["2.2.1"].auto
+    assert points["holdback_hidden"] == 0  # others: stub
+    for header, said in (("# points: 37\n# others: reference\n", "absolute score"), ("# keeps: 2.2.2/with-bias\n", "not a check")):
+        (tmp_path / "cheat.txt").write_text(f"# cheat: x\n{header}# --- todo 2.2.1\nvalues = z\n", encoding="utf-8")
+        with pytest.raises(ValueError, match=said):
+            parse_cheat(tmp_path / "cheat.txt")
 
 
 def test_there_are_at_least_ten_cheats():

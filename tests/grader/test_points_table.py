@@ -3,6 +3,7 @@ the grader's checks are the table's, and every behaviour tried on hidden inputs 
 The grader refuses to start otherwise; each of these tests makes one of those fail."""
 
 import dataclasses
+import re
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,7 @@ from hwtools.grade.grader import Grader, GradingError
 from hwtools.todos import AUTO_POINTS, TODO_BY_ID, TODOS
 
 KIT = Path(__file__).resolve().parents[2]
+pytestmark = pytest.mark.offering  # also run on the variant offering (test_variant.py)
 
 
 def _cases():
@@ -30,16 +32,23 @@ def test_the_kits_table_agrees_with_itself():
         assert behaviour.points == TODO_BY_ID[behaviour.todo].check_points[behaviour.key]
 
 
+def _raised(todo_id, more):
+    """TODO ``todo_id``'s checks with ``more`` points on its first one."""
+    (first, points), *rest = TODO_BY_ID[todo_id].checks
+    return ((first, points + more), *rest)
+
+
 def test_checks_that_do_not_add_up_to_the_total_are_found():
-    raised = _with("1.2.1", checks=(("equation-3", 9), ("one-step", 3)))  # 12, total still 10
-    problems = checks.points_table_problems(_cases(), raised)
-    assert len(problems) == 1 and "1.2.1" in problems[0] and "12" in problems[0] and "10" in problems[0]
-    assert checks.points_table_problems(_cases(), _with("1.2.1", auto=12, checks=raised[3].checks)) == []
+    total = TODO_BY_ID["1.2.1"].auto
+    problems = checks.points_table_problems(_cases(), _with("1.2.1", checks=_raised("1.2.1", 2)))  # total unchanged
+    assert len(problems) == 1 and "1.2.1" in problems[0] and f"add up to {total + 2:g} points, its total is {total:g}" in problems[0]
+    assert checks.points_table_problems(_cases(), _with("1.2.1", auto=total + 2, checks=_raised("1.2.1", 2))) == []
 
 
 def test_a_check_missing_from_the_table_is_found():
-    problems = checks.points_table_problems(_cases(), _with("2.2.2", checks=(("with-bias", 3),)))
-    assert len(problems) == 1 and "zero-bias" in problems[0]
+    todo = TODO_BY_ID["2.2.2"]
+    problems = checks.points_table_problems(_cases(), _with("2.2.2", checks=((todo.checks[0][0], todo.auto),)))
+    assert len(problems) == 1 and todo.checks[1][0] in problems[0]
 
 
 def test_a_hidden_behaviour_without_a_visible_twin_is_found():
@@ -52,6 +61,7 @@ def test_a_hidden_behaviour_without_a_visible_twin_is_found():
 
 
 def test_the_grader_refuses_to_start_on_a_table_that_disagrees(monkeypatch):
-    monkeypatch.setattr(checks, "TODOS", _with("1.2.1", checks=(("equation-3", 9), ("one-step", 3))))
-    with pytest.raises(GradingError, match=r"points table disagrees with itself:\n  TODO 1.2.1: its checks add up to 12"):
+    monkeypatch.setattr(checks, "TODOS", _with("1.2.1", checks=_raised("1.2.1", 2)))
+    said = f"points table disagrees with itself:\n  TODO 1.2.1: its checks add up to {TODO_BY_ID['1.2.1'].auto + 2:g} "
+    with pytest.raises(GradingError, match=re.escape(said)):
         Grader(KIT)

@@ -57,3 +57,31 @@ def test_the_readme_fits_10_kb_and_its_todo_table_is_the_kits():
         for file, what in (part.partition(": ")[::2] for part in todo.code.split("; ")):
             if file.endswith(".py"):
                 assert f"`{file}`" in rows[todo.id] and f"`{what.split()[-1]}`" in rows[todo.id], (todo.id, rows[todo.id])
+
+
+TIME = r"\d+ min \d+ s|\d+(?:\.\d+)? (?:ms|s|min)\b"
+DATED = rf"({TIME})[^.;|]{{0,80}}?\b(20\d\d-\d\d-\d\d)\b"
+
+
+def _rows_by_date():
+    rows = {}
+    for line in (KIT / "benchmarks/RESULTS.md").read_text(encoding="utf-8").splitlines():
+        if re.match(r"^\| 20\d\d-\d\d-\d\d \|", line):
+            rows.setdefault(line[2:12], []).append(line)
+    return rows
+
+
+def test_a_time_the_docs_state_comes_from_a_dated_row_of_the_results():
+    """Each time the README, requirements.txt or a doc states with its date is in a row of that date
+    of benchmarks/RESULTS.md; the term's steps (docs/instructor.md) each give theirs so."""
+    rows, wrong, seen = _rows_by_date(), [], 0
+    for doc in ["requirements.txt", *DOCS]:  # DOCS: README.md and every other .md of the kit
+        for time, date in re.findall(DATED, (KIT / doc).read_text(encoding="utf-8")):
+            seen += 1
+            if not any(re.search(rf"(?<![\d.]){re.escape(time)}", row) for row in rows.get(date, [])):
+                wrong.append(f"{doc}: {time} ({date}) is in no row of {date} in benchmarks/RESULTS.md")
+    assert seen >= 5 and not wrong, wrong
+    steps = re.findall(r"^\| \d\. [^|]+\|[^|]+\| ([^|]+) \|$", (KIT / "docs/instructor.md").read_text(encoding="utf-8"), re.M)
+    assert len(steps) == 9
+    undated = [time for time in steps if re.search(TIME, time) and not re.search(DATED, time)]
+    assert not undated, f"docs/instructor.md: the term's times without the date of their row: {undated}"

@@ -115,6 +115,7 @@ def test_bad_notebook_values_are_refused_naming_the_variable():
         report.problem_two(values, "derivation")
 
 
+@pytest.mark.offering
 def test_the_answers_show_the_students_parameters_and_the_notebooks_numbers():
     p1 = report.problem_one(_p1_values())
     p2 = report.problem_two(_p2_values(), "Write $z_i = \\tilde w^\\top \\tilde x_i$.\n\n$$\\nabla l = X^\\top (y - p)$$")
@@ -130,6 +131,9 @@ def test_the_answers_show_the_students_parameters_and_the_notebooks_numbers():
     assert "- final parameters: **[0.008, -0.587, 0.886, -1.000]**" in text
     assert f"- converged ({settings.MAX_EPISODE_STEPS} from then on) at iteration: **2** (deadline {settings.CONVERGENCE_DEADLINE}: met)" in text
     assert f"- 1 of 4 random policies reached the maximum reward of {settings.MAX_EPISODE_STEPS}: **25.0%**" in text
+    latex, _ = report.answers_latex(answers)  # the same facts in the LaTeX the student edits (the episode cap)
+    assert f"reached the maximum reward of {settings.MAX_EPISODE_STEPS}:" in latex
+    assert f"converged ({{{settings.MAX_EPISODE_STEPS}}} from then on)" in latex
     assert "| converged | 0% | 95% |" in text
     assert "- test accuracy: **0.750**" in text and "- first iteration with train accuracy above 99%: **2**" in text
     assert "$$\\nabla l = X^\\top (y - p)$$" in text

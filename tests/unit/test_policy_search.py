@@ -235,7 +235,7 @@ def test_the_sweep_says_what_to_check_when_no_run_converges_and_which_rates_to_c
 
     never = SweepResult(np.array([1e-4, 1e-3]), np.arange(2), np.full((2, 2, 21), 9.0), 7)
     assert "TODO 1.2.1" in never.advice() and "TODO 1.3.2" in never.advice() and "direction" in never.advice()
-    curves = np.full((3, 2, 21), 500.0)
+    curves = np.full((3, 2, 21), float(TOP))
     curves[0, 1, :] = 9.0  # one seed of the first rate never converges
     some = SweepResult(np.array([1e-4, 4e-4, 6e-4]), np.arange(2), curves, 7)
     assert some.advice().startswith("Every seed converged within 7 iterations with the learning rate 0.0004 or 0.0006:")

@@ -10,6 +10,10 @@ notebooks), at the top or up to two folders down (``bob.zip`` holding ``bob/hwli
 without their ``hwlib/`` folder) is read as ``hwlib/``, and a folder whose only content is one
 ``.zip`` is read as that zip.
 
+The command line refuses, before it writes anything, a kit the release gate finds not ready
+(``instructor/gate.py``: its facts out of date or written as literals, a points table that
+disagrees, an answer key older than the known mistakes).
+
 Nothing in a submission is trusted: ``submissions.py`` reads it (what is copied, what rejects
 it), and the student's code then runs only in the grader's sandbox. This module runs the class:
 it grades the submissions, saves each result, and writes the gradebook (``gradebook.py``), its
@@ -343,13 +347,23 @@ def main(args, parser):
         reference = KIT_ROOT
     try:
         roster = read_roster(args.roster) if args.roster else None
+    except RosterError as error:
+        print(f"error: --roster {error}", file=sys.stderr)
+        return 2
+    try:  # the release gate (instructor/gate.py): a kit not ready to grade with is refused before anything is written
+        from instructor import gate  # noqa: PLC0415 - the instructor's kit's own tools
+    except ImportError:
+        parser.error("grading a class needs the instructor's kit's instructor/ folder (its release gate)")
+    try:
+        gate.check(reference, "the class run")
+    except gate.Refused as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    try:
         report = grade_class(args.submission, args.gradebook, args.feedback, reference, jobs=args.jobs,
                              progress=sys.stderr, roster=roster, assignment=args.assignment, python=args.python,
                              isolation=args.isolation, time_limit=args.time_limit,
                              memory_limit=args.memory_limit * 2**20)
-    except RosterError as error:
-        print(f"error: --roster {error}", file=sys.stderr)
-        return 2
     except GradingError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
