@@ -45,7 +45,7 @@ class SweepResult:
     seeds: np.ndarray  # (num_seeds,)
     rewards: np.ndarray  # (num_rates, num_seeds, num_training_iterations + 1)
     deadline: int
-    reused: bool = False  # read back from an earlier sweep of the same code and settings (``reuse=True``)
+    reused: bool = False  # read back from an earlier sweep of the same code and settings (``reuse_stored=True``)
 
     @property
     def converged(self):

@@ -569,6 +569,8 @@ def check_tab_order(panel):
     page = panel.page
     panel.evaluate("element => element.scrollIntoView({block: 'start'})")
     slider(panel, THETA_LABELS[0]).locator(".noUi-handle").focus()
+    page.keyboard.press("Shift+Tab")  # and back: θ₁ focused by the keyboard (after a click, .focus() shows no outline)
+    page.keyboard.press("Tab")
     visited = [panel.evaluate(FOCUSED_JS, panel.element_handle())]
     while len(visited) < 40:
         page.keyboard.press("Tab")
