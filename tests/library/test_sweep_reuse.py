@@ -159,3 +159,19 @@ def test_load_checks_what_it_reads_and_store_keeps_the_newest(cache):
         assert reuse.store(f"{index:064x}", good)
         os.utime(cache / f"sweep-{index:064x}.npz", (index + 1e9, index + 1e9))
     assert stored_files(cache) == [f"sweep-{index:064x}.npz" for index in range(3, reuse.KEEP + 3)]
+
+
+def test_without_posix_owners_as_on_windows_a_stored_result_is_still_read(cache, monkeypatch):
+    """Windows has no os.getuid (tests/instructor/foreign_os.py hides it from the kit too): no owner to check,
+    and a file another process holds open cannot be replaced (PermissionError): nothing stored, no error."""
+    monkeypatch.delattr(reuse.os, "getuid")
+    first = sweep()
+    assert not first.reused and sweep().reused
+
+    def held_open(*args, **kwargs):
+        raise PermissionError(13, "The process cannot access the file because it is being used by another process")
+
+    monkeypatch.setattr(reuse.os, "replace", held_open)
+    again = sweep(num_seeds=3)
+    assert not again.reused and not sweep(num_seeds=3).reused
+    assert sweep().reused
