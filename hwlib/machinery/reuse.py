@@ -146,7 +146,7 @@ def load(key, shape, max_value):
     try:
         if not path.is_file() or not _own(where) or not _own(path) or path.stat().st_size > MAX_BYTES:
             return None
-        with np.load(path, allow_pickle=False) as stored:
+        with open(path, "rb") as handle, np.load(handle, allow_pickle=False) as stored:  # closed even when np.load fails
             if str(stored["key"]) != key:
                 return None
             rewards = np.array(stored["rewards"])
