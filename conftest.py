@@ -3,6 +3,8 @@ failure reports that name the TODO (``hwtools/pytest_todo.py``), and a test that
 failing alone on Windows too (``hwtools/pytest_overrun.py``)."""
 
 import os
+import shutil
+import tempfile
 
 import pytest
 
@@ -22,6 +24,14 @@ def pytest_configure(config):
     # xdist sends the files with the most tests first by default: keep the folder order instead.
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
+    # The learning-rate sweep's stored results (hwlib/machinery/reuse.py) go to a folder of this test run's
+    # own, set before any kernel or server starts: no test reads what another run stored.
+    config.hwlib_cache_dir = os.environ["HWLIB_CACHE_DIR"] = tempfile.mkdtemp(prefix="hwlib-cache-")
+
+
+def pytest_unconfigure(config):
+    if getattr(config, "hwlib_cache_dir", None):
+        shutil.rmtree(config.hwlib_cache_dir, ignore_errors=True)
 
 
 def pytest_collection_modifyitems(items):

@@ -1,6 +1,7 @@
 """Day one's costs: Run All of each notebook, and the check cell of each TODO.
 
-    .venv/bin/python benchmarks/bench_dayone.py [--rounds N] [--skip-run-all] [--skip-p2] [--skip-checks] [--skip-pytest] [--done]
+    .venv/bin/python benchmarks/bench_dayone.py [--rounds N] [--skip-run-all] [--skip-p2] [--skip-checks] [--skip-pytest]
+        [--own-turn] [--done] [--reuse]
 
 1. **Run All of problem 1** (the instructor's edition, a fresh kernel, as ``nbconvert --execute``
    does): wall clock and CPU seconds (the kernel and everything it ran: the check cells' graders
@@ -14,7 +15,9 @@
 2. **One check per TODO** (``hwtools.check_cell.grade_todo``, what ``check("1.2.1")`` runs): wall and
    CPU seconds in the instructor's edition (grading the solutions, hidden inputs included) and in
    a student edition whose TODOs hold the solutions (the answer key, visible checks only: what a
-   student who is done waits for). The target is 3 s per TODO on 2 cores.
+   student who is done waits for). The target is 3 s per TODO on 2 cores. With ``--own-turn``, each also
+   with a HOME of its own beside it: a check then never waits for the machine-wide turn of untrusted
+   runs that other graders hold (``hwtools/grade/sandbox.py``), so the pair tells the wait from the path.
 3. **The untouched student edition's ``pytest``** (``tests/instructor/day_one.py``'s day-one edition, every
    test as the student runs them): seconds and lines printed (it took 13.5 min and printed 3,400
    lines before its failures named their TODO and its browser tests waited for errors they could
@@ -29,6 +32,11 @@ Measured 2026-12-02 on a 2-core Debian box shared by four sessions: the done edi
 tests, 74 s to 2 min 37 s at load 3-6 (94 s at load 3.1-4.8 in this script); hand-in --no-report
 11-14 s at load 3-5 (its ten checks); hand-in with the report 1 min 32 s at load 4-5, the report
 alone 2 min 18 s at load 3-7.
+
+5. **The loop after 1.3** (``--reuse``): Run All of problem 1 with the learning-rate sweep trained (an empty
+   ``HWLIB_CACHE_DIR``) and, next, read back (the folder that run filled: the same code and settings, as after
+   an edit of 1.3.3), in turns; the whole Run All and the sweep's cell, and whether every compared output
+   (what nbval compares: the cells without ``NBVAL_IGNORE_OUTPUT``) is the same both ways.
 
 The load average of the machine is printed before and after: on a shared machine wall times
 grow with it.
@@ -60,7 +68,7 @@ def children_cpu():
 
 def run_all(path):
     """(wall seconds including the kernel's start, CPU seconds of the kernel and its children,
-    [(cell id, first line, seconds)]) of one Run All in a fresh kernel."""
+    [(cell id, first line, seconds)], the executed notebook) of one Run All in a fresh kernel."""
     import nbformat
     from nbclient import NotebookClient
 
@@ -75,7 +83,7 @@ def run_all(path):
                 client.execute_cell(cell, index)
                 cells.append((cell.id, cell.source.splitlines()[0][:48] if cell.source else "", time.perf_counter() - at))
     time.sleep(0.5)  # the kernel has exited and been waited for: its CPU is counted
-    return time.perf_counter() - started, children_cpu() - cpu, cells
+    return time.perf_counter() - started, children_cpu() - cpu, cells, notebook
 
 
 def without_checks(path, out):
@@ -93,7 +101,7 @@ def bench_run_all(rounds):
         results = {"with check cells": [], "without": []}
         for _ in range(rounds):
             for name, path in (("with check cells", Path(scratch) / "with_checks.ipynb"), ("without", bare)):
-                wall, cpu, cells = run_all(path)
+                wall, cpu, cells, _ = run_all(path)
                 results[name].append((wall, cpu, cells))
                 print(f"  Run All of p1 {name:16s}: {wall:6.1f} s wall, {cpu:6.1f} s CPU", flush=True)
     print_runs("p1", results, slow_cells_of=("with check cells",))
@@ -122,7 +130,7 @@ def bench_run_all_p2(rounds):
             if name != "one BLAS thread":
                 os.environ["OPENBLAS_NUM_THREADS"] = cores  # the kernel inherits it; hwlib leaves a setting alone
             try:
-                wall, cpu, cells = run_all(P2)
+                wall, cpu, cells, _ = run_all(P2)
             finally:
                 os.environ.pop("OPENBLAS_NUM_THREADS", None)
                 if previous is not None:
@@ -132,7 +140,60 @@ def bench_run_all_p2(rounds):
     print_runs("p2", results, slow_cells_of=tuple(results))
 
 
-def bench_checks(rounds):
+def compared_outputs(notebook):
+    """What nbval compares: each code cell's text outputs, a stream's chunks joined (a kernel may flush one
+    print in two), but for the cells marked NBVAL_IGNORE_OUTPUT."""
+    cells = []
+    for cell in notebook.cells:
+        if cell.cell_type != "code" or "NBVAL_IGNORE_OUTPUT" in cell.source:
+            continue
+        outputs = []
+        for output in cell.outputs:
+            if output.get("name") and outputs and outputs[-1][0] == output["name"]:
+                outputs[-1] = (output["name"], outputs[-1][1] + output["text"], None)
+            else:
+                outputs.append((output.get("name"), output.get("text"), output.get("data", {}).get("text/plain")))
+        cells.append(outputs)
+    return cells
+
+
+def bench_reuse(rounds):
+    """Run All of p1, the sweep trained (a new, empty cache folder) then read back (that folder), in turns."""
+    previous = os.environ.get("HWLIB_CACHE_DIR")
+    results, outputs = {"sweep trained": [], "sweep read back": []}, {}
+    try:
+        with tempfile.TemporaryDirectory(prefix="bench-dayone-") as scratch:
+            copy = Path(scratch) / P1.name
+            shutil.copy2(P1, copy)
+            for index in range(rounds):
+                os.environ["HWLIB_CACHE_DIR"] = str(Path(scratch) / f"cache-{index}")
+                for name in results:
+                    wall, cpu, cells, notebook = run_all(copy)
+                    sweep = next(seconds for _, first, seconds in cells if first.startswith("sweep = "))
+                    results[name].append((wall, cpu, cells, sweep))
+                    outputs.setdefault(name, compared_outputs(notebook))
+                    differ = [index for index, (mine, first) in enumerate(zip(compared_outputs(notebook), outputs["sweep trained"]))
+                              if mine != first]
+                    print(f"  Run All of p1, {name:16s}: {wall:6.1f} s wall, {cpu:6.1f} s CPU, the sweep's cell {sweep:5.1f} s; "
+                          f"outputs {'the same' if not differ else 'DIFFER'} (load {os.getloadavg()[0]:.1f})", flush=True)
+                    for index in differ:
+                        print(f"    compared cell {index}: {str(compared_outputs(notebook)[index])[:600]}\n"
+                              f"      first run's: {str(outputs['sweep trained'][index])[:600]}")
+    finally:
+        os.environ.pop("HWLIB_CACHE_DIR", None)
+        if previous is not None:
+            os.environ["HWLIB_CACHE_DIR"] = previous
+    print(f"\nthe loop after 1.3 (median of {rounds}):")
+    for name, runs in results.items():
+        print(f"  {name:16s}: Run All {statistics.median(r[0] for r in runs):6.1f} s wall, "
+              f"{statistics.median(r[1] for r in runs):6.1f} s CPU; the sweep's cell {statistics.median(r[3] for r in runs):5.1f} s")
+    print(f"  compared outputs the same both ways: {outputs['sweep read back'] == outputs['sweep trained']}")
+
+
+def bench_checks(rounds, own_turn=False):
+    """One check per TODO in both editions. ``own_turn``: also, in turns with each, the same check with a HOME of
+    its own, so that it never waits for the machine-wide turn of untrusted runs (``~/.cache/hwgrade``) that
+    other graders on the machine hold: the check cell's own path."""
     from hwtools.check_cell import grade_todo
     from hwtools.grade import checks
     from instructor.release import build_student_edition
@@ -141,21 +202,35 @@ def bench_checks(rounds):
     with tempfile.TemporaryDirectory(prefix="bench-dayone-") as scratch:
         student = Path(scratch) / "student"
         build_student_edition(KIT, student, keep=frozenset(TODO_BY_ID))
-        print(f"\none check per TODO (median of {rounds}): wall / CPU seconds")
-        print(f"  {'TODO':6s} {'instructor edition':>22s} {'student edition (done)':>24s}")
-        worst = 0.0
+        homes = [None] + ([Path(scratch) / "home"] if own_turn else [])
+        print(f"\none check per TODO (median of {rounds}): wall / CPU seconds"
+              + ("; each second column with a HOME of its own (no wait for other graders' turn)" if own_turn else ""))
+        print(f"  {'TODO':6s} " + " ".join(f"{kit + (' own turn' if home else ''):>24s}" for kit in ("instructor", "student (done)")
+                                            for home in homes))
+        worst = (0.0, None)
         for todo in checks.GRADED_TODOS:
             row = []
             for kit in (KIT, student):
-                walls, cpus = [], []
-                for _ in range(rounds):
-                    cpu, started = children_cpu(), time.perf_counter()
-                    grade_todo(todo, kit=kit)
-                    walls.append(time.perf_counter() - started)
-                    cpus.append(children_cpu() - cpu)
-                row.append((statistics.median(walls), statistics.median(cpus)))
-            worst = max(worst, row[1][0])
-            print(f"  {todo:6s} {row[0][0]:10.2f} / {row[0][1]:5.2f} s {row[1][0]:12.2f} / {row[1][1]:5.2f} s", flush=True)
+                for home in homes:
+                    walls, cpus = [], []
+                    for _ in range(rounds):
+                        previous = os.environ.get("HOME")
+                        if home is not None:
+                            home.mkdir(exist_ok=True)
+                            os.environ["HOME"] = str(home)
+                        try:
+                            cpu, started = children_cpu(), time.perf_counter()
+                            grade_todo(todo, kit=kit)
+                            walls.append(time.perf_counter() - started)
+                            cpus.append(children_cpu() - cpu)
+                        finally:
+                            if previous is not None:
+                                os.environ["HOME"] = previous
+                    row.append((statistics.median(walls), statistics.median(cpus)))
+            worst = max(worst, (row[-1][0], todo))
+            print(f"  {todo:6s} " + " ".join(f"{wall:14.2f} / {cpu:5.2f} s" for wall, cpu in row)
+                  + f"  (load {os.getloadavg()[0]:.1f})", flush=True)
+        print(f"  the slowest check (student edition{', own turn' if own_turn else ''}): {worst[1]}, {worst[0]:.2f} s")
 
 
 def bench_untouched_pytest():
@@ -208,15 +283,21 @@ def main():
     parser.add_argument("--skip-checks", action="store_true")
     parser.add_argument("--skip-pytest", action="store_true")
     parser.add_argument("--done", action="store_true", help="only the done student's path: pytest and hand-in")
+    parser.add_argument("--own-turn", action="store_true", help="each check also with a HOME of its own (no machine-wide turn)")
+    parser.add_argument("--reuse", action="store_true", help="only the loop after 1.3: Run All of p1, sweep trained vs read back")
     args = parser.parse_args()
     os.environ.setdefault("MPLBACKEND", "Agg")
     print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
+    if args.reuse:
+        bench_reuse(args.rounds)
+        print(f"\nload average {os.getloadavg()[0]:.1f} at the end")
+        return
     if args.done:
         bench_done_path()
         print(f"\nload average {os.getloadavg()[0]:.1f} at the end")
         return
     if not args.skip_checks:
-        bench_checks(args.rounds)
+        bench_checks(args.rounds, args.own_turn)
     if not args.skip_run_all:
         bench_run_all(args.rounds)
     if not args.skip_p2:

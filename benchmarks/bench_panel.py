@@ -45,7 +45,7 @@ PANEL_CELL = "from hwlib.widgets import SliderPanel\n\npanel = SliderPanel()\npa
 
 def slider_settings(num_moves):
     """``num_moves`` seeded weight vectors in [-2, 2], on the sliders' grid."""
-    params = sample_random_params(num_moves, seed=SETTINGS_SEED, low=-2.0, high=2.0)
+    params = 2.0 * sample_random_params(num_moves, seed=SETTINGS_SEED)  # [-1, 1) scaled to the sliders' [-2, 2)
     return [tuple(slider_grid_value(float(value)) for value in row) for row in params]
 
 

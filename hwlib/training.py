@@ -30,6 +30,7 @@ from hwlib.machinery import batch, episodes
 from hwlib.machinery.progress import Progress, format_seconds
 from hwlib.machinery.validation import as_float_array, check_count, check_seed
 from hwlib.policy_search import check_learning_rate, converged_within
+from hwlib.machinery import reuse  # last: it notes the code loaded so far (the sweep's)
 
 # With a policy that follows equation (1), the sweep's episodes last this many steps on average
 # (measured with benchmarks/bench_cartpole.py); a policy played step by step costs about as much.
@@ -44,6 +45,7 @@ class SweepResult:
     seeds: np.ndarray  # (num_seeds,)
     rewards: np.ndarray  # (num_rates, num_seeds, num_training_iterations + 1)
     deadline: int
+    reused: bool = False  # read back from an earlier sweep of the same code and settings (``reuse_stored=True``)
 
     @property
     def converged(self):
@@ -117,13 +119,16 @@ def learning_rate_sweep(
     *,
     progress=True,
     max_minutes=settings.MAX_MINUTES,
+    reuse_stored=False,
 ):
     """Train from zeros with every learning rate and ``num_seeds`` seeds (your ``train_cartpole_policy``).
 
     The run with rate r and seed s is ``run_training(learning_rate=r, seed=s, ...)``: the runs
     train side by side and their episodes are played together; ``batched=False`` trains them one
     after another, every episode on its own (the same numbers, for comparisons). ``progress`` and
-    ``max_minutes`` as in ``run_training``. Returns a ``SweepResult``.
+    ``max_minutes`` as in ``run_training``. ``reuse_stored``: read the rewards back from an earlier
+    sweep of the same code and settings, if one was stored (checked on its first run, trained again),
+    and store them after training (``hwlib/machinery/reuse.py``). Returns a ``SweepResult``.
     """
     rates = np.atleast_1d(as_float_array(learning_rates, "learning_rates"))
     if rates.ndim != 1 or rates.size == 0:
@@ -133,8 +138,9 @@ def learning_rate_sweep(
     num_seeds = check_count(num_seeds, "num_seeds")
     first_seed = check_seed(first_seed, "first_seed")
     deadline = check_count(deadline, "deadline")
-    if not isinstance(batched, bool):
-        raise TypeError(f"batched must be True or False, got {batched!r}")
+    for name, flag in (("batched", batched), ("reuse_stored", reuse_stored)):
+        if not isinstance(flag, bool):
+            raise TypeError(f"{name} must be True or False, got {flag!r}")
     seeds = np.arange(first_seed, first_seed + num_seeds)
     # train_cartpole_policy checks these itself, at the first run's start.
     options = {"num_training_iterations": num_training_iterations, "num_rollouts_per_eval": num_rollouts_per_eval,
@@ -148,8 +154,23 @@ def learning_rate_sweep(
     iterations = num_training_iterations if _is_count(num_training_iterations) else None
     rollouts = num_rollouts_per_eval if _is_count(num_rollouts_per_eval) else None
     title = f"learning-rate sweep ({len(tasks)} training runs side by side)" if progress else None
-    curves = _run(tasks, task_seeds, iterations, rollouts, batched, title, "This learning-rate sweep", max_minutes)
+    describe = "This learning-rate sweep"
+    key = None
+    if reuse_stored and iterations is not None:
+        key = reuse.sweep_key({"learning_rates": [rate.hex() for rate in rates.tolist()], "first_seed": first_seed,
+                               "num_seeds": num_seeds, "batched": batched, **{name: repr(value) for name, value in options.items()}},
+                              settings)
+        stored = reuse.load(key, (len(rates), num_seeds, iterations + 1), float(settings.MAX_EPISODE_STEPS))
+        # The same code gives the same numbers: its first run, trained again, must give the stored ones.
+        if stored is not None and np.array_equal(_run(tasks[:1], task_seeds[:1], iterations, rollouts, batched, None, describe,
+                                                      max_minutes)[0], stored[0, 0]):
+            with Progress(title, 1, None) as bar:
+                bar.note = "the stored result of the same code and settings (its first run trained again: the same)"
+                bar.set(1)
+            return SweepResult(rates, seeds, stored, deadline, reused=True)
+    curves = _run(tasks, task_seeds, iterations, rollouts, batched, title, describe, max_minutes)
     rewards = np.array(curves, dtype=np.float64).reshape(len(rates), num_seeds, -1)
+    reuse.store(key, rewards)
     return SweepResult(rates, seeds, rewards, deadline)
 
 

@@ -64,6 +64,7 @@ from hwlib.machinery.panel_controls import (
 )
 from hwlib.machinery.validation import check_params, check_seed
 from hwlib.plots.cartpole import EpisodeView, how_it_ended, message_png
+from hwlib.plots.landscape import format_theta
 
 SLIDER_MIN, SLIDER_MAX, SLIDER_STEP = -2.0, 2.0, 0.01
 OBSERVATION_UNITS = ("m", "m/s", "rad", "rad/s")
@@ -181,21 +182,35 @@ DEFAULT_PARAMS = PRESETS["always left"]  # θ = 0: the panel starts from a polic
 
 @dataclass(frozen=True)
 class PanelFrame:
-    """What the panel shows for one setting of the controls."""
+    """What the panel shows for one setting of the controls (``description``: the picture in words,
+    its alternative text for a screen reader)."""
 
     episode: Episode
     step: int
     reward_text: str
     png: bytes
+    description: str
 
 
 def reward_text(episode):
     """The panel's reward line, e.g. 'Total reward: 11 (the pole fell past ±0.21 rad = ±12°)'."""
     if not isinstance(episode, Episode):
         raise TypeError(f"episode must be an hwlib.cartpole.Episode, got {type(episode).__name__}")
-    reward = int(episode.total_reward)
-    reason = "the maximum" if reward >= MAX_EPISODE_REWARD else how_it_ended(episode)
-    return f"Total reward: {reward} ({reason})"
+    return f"Total reward: {int(episode.total_reward)} ({_ending(episode)})"
+
+
+def _ending(episode):
+    return "the maximum" if episode.total_reward >= MAX_EPISODE_REWARD else how_it_ended(episode)
+
+
+def episode_description(params, seed, episode, step):
+    """The panel's picture in words (its alternative text): the weights as the readouts show them, the seed,
+    the reward and why the episode ended, and the step the cart is drawn at."""
+    if not isinstance(episode, Episode):
+        raise TypeError(f"episode must be an hwlib.cartpole.Episode, got {type(episode).__name__}")
+    return (f"The episode of θ = {format_theta(check_params(params, 'params'))} from seed {check_seed(seed, 'seed')}: total reward "
+            f"{int(episode.total_reward)} ({_ending(episode)}). The plots show the cart position and the pole angle over its "
+            f"{episode.num_steps} steps with their limits; the drawing shows the cart and pole at step {step} of {episode.num_steps}.")
 
 
 def same_direction(before, after):
@@ -236,7 +251,7 @@ def render_panel(params, seed, step=None, view=None, episode=None):
     view = EpisodeView(FIGURE_DPI, FIGURE_WIDTH, FIGURE_HEIGHT) if view is None else view
     png = view.frame_png(episode, step)  # checks step
     step = episode.num_steps if step is None else int(step)
-    return PanelFrame(episode, step, reward_text(episode), png)
+    return PanelFrame(episode, step, reward_text(episode), png, episode_description(params, seed, episode, step))
 
 
 class SliderPanel:
@@ -461,6 +476,7 @@ class SliderPanel:
         self.reward_label.value = f"<b>{html.escape(frame.reward_text)}</b>{self._direction_note}"
         self.reward_label.tooltip = REWARD_TOOLTIP + (f"\n{DIRECTION_NOTE}" if self._direction_note else "")
         self.image.value = frame.png
+        self.controls.image_alt = frame.description
         if self.play.playing and self._overlay_key != (params, seed):
             # ▶ plays: the browser draws the steps over the episode's picture, with this
             data = self.view.overlay(self.episode)
@@ -482,6 +498,7 @@ class SliderPanel:
         self.reward_label.value = text
         self.reward_label.tooltip = "\n".join(lines)  # all of it, however long
         self.image.value = message_png(lines, self.view.figure.get_size_inches(), self.view.figure.dpi)
+        self.controls.image_alt = "The picture says: " + " ".join(lines)
 
     def _move_time_step(self, num_steps):
         self._writing.active = True

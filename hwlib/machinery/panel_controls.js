@@ -98,10 +98,69 @@ async function render({ model, el }) {
   el.classList.add("hwlib-panel-controls");
   el.append(presets, landscape);
   model.send({ event: "connected" });
+  const stopNaming = nameControls(model, el);
   return () => {
     for (const [control, handler] of listeners) control.off("change:value", handler);
     play.off("change:playing", onPlaying);
     overlay.hide();
+    stopNaming();
+  };
+}
+
+// ipywidgets leaves the sliders' handles, ▶ Play's buttons and the picture without a name a screen reader
+// can say, and a handle reads its raw value (-0.30000000000000004). Name them, with values as the readouts
+// show them, make the status line a live region, and do it again whenever the panel's page changes.
+function nameControls(model, el) {
+  let observer = null, tries = 0;
+  const set = (element, name, value) => {
+    if (value !== undefined && value !== null && element.getAttribute(name) !== value) element.setAttribute(name, value);
+  };
+  const name = (root) => {
+    for (const slider of root.querySelectorAll(".widget-hslider")) {
+      const handle = slider.querySelector(".noUi-handle");
+      const readout = slider.querySelector(".widget-readout")?.textContent.trim();
+      if (!handle) continue;
+      set(handle, "aria-label", slider.querySelector(".widget-label")?.textContent.trim());
+      if (readout) {
+        set(handle, "aria-valuetext", readout);
+        const value = Number(readout.replace("\u2212", "-"));
+        if (Number.isFinite(value)) set(handle, "aria-valuenow", String(value));
+      }
+    }
+    const names = model.get("button_names");
+    for (const button of root.querySelectorAll(".widget-play button")) {
+      const icon = Object.keys(names).find((icon) => button.querySelector(`.${icon}`));
+      if (icon) set(button, "aria-label", names[icon]);
+    }
+    const image = root.querySelector("img.hwlib-episode");
+    if (image) set(image, "alt", model.get("image_alt"));
+    for (const status of root.querySelectorAll(".hwlib-status")) {
+      set(status, "role", "status");
+      set(status, "aria-live", "polite");
+      set(status, "aria-atomic", "true");
+    }
+  };
+  const attach = () => {
+    const root = el.closest(".hwlib-slider-panel");
+    if (!root) {
+      if (++tries < 600) timer = setTimeout(attach, 50);  // the panel's box is not on the page yet
+      return;
+    }
+    name(root);
+    observer = new MutationObserver(() => name(root));
+    observer.observe(root, { subtree: true, childList: true, characterData: true, attributes: true,
+                             attributeFilter: ["aria-valuetext", "aria-valuenow", "src", "class"] });
+    model.on("change:image_alt", onAlt);
+  };
+  const onAlt = () => {
+    const image = el.closest(".hwlib-slider-panel")?.querySelector("img.hwlib-episode");
+    if (image) set(image, "alt", model.get("image_alt"));
+  };
+  let timer = setTimeout(attach, 0);
+  return () => {
+    clearTimeout(timer);
+    observer?.disconnect();
+    model.off("change:image_alt", onAlt);
   };
 }
 

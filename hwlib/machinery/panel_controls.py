@@ -6,6 +6,12 @@ browser, and sends the whole state after every action on one channel, numbered, 
 the kernel receives is the state of the last action (ipywidgets alone sends each control's
 changes on its own channel, and a held slider value can land after a preset's); while ▶ Play
 runs it draws the time steps over the episode's picture itself.
+
+It also makes the panel usable with a keyboard and a screen reader, where ipywidgets leaves gaps:
+every slider's handle is named by its label and reads its value as the readout shows it ("-0.30",
+not -0.30000000000000004), ▶ Play's buttons are named, the picture's alternative text says what it
+shows (``image_alt``, from the kernel), the status line is a live region (a new reward or error is
+announced), and a focused control has a visible outline.
 """
 
 from __future__ import annotations
@@ -19,6 +25,9 @@ import traitlets
 STATUS_LINES = 2  # the panel's status line's height, in lines of text
 LANDSCAPE_BUTTON_LABEL = "Show θ in the landscape"
 LANDSCAPE_TOOLTIP_UNCONNECTED = "No landscape view is connected to this panel (connect one with panel.on_send_params)"
+# The names a screen reader gives ▶ Play's buttons (ipywidgets draws them as icons only), by their icon.
+PLAY_BUTTON_NAMES = {"fa-play": "Play the episode", "fa-pause": "Pause the episode", "fa-stop": "Stop: back to step 0",
+                     "fa-retweet": "Play again and again"}
 
 PANEL_ESM = pathlib.Path(__file__).with_name("panel_controls.js")  # the JavaScript, read by anywidget
 
@@ -28,6 +37,9 @@ PANEL_CSS = f"""
 .hwlib-panel-controls {{ display: flex; flex-direction: column; gap: 4px; }}
 .hwlib-presets {{ display: flex; gap: 4px; }}
 .hwlib-panel-controls .widget-button {{ width: auto; margin: 0; }}
+.hwlib-slider-panel :is(.noUi-handle, button, input, select, [contenteditable]):focus-visible {{
+  outline: 3px solid var(--jp-brand-color1, #1976d2) !important; outline-offset: 2px !important;  /* over ipywidgets' "none" */
+}}
 .hwlib-status .widget-html-content {{
   display: -webkit-box; -webkit-box-orient: vertical; -webkit-line-clamp: {STATUS_LINES};
   overflow: hidden; white-space: normal; line-height: 1.4em; height: {1.4 * STATUS_LINES}em;
@@ -43,6 +55,7 @@ class PanelControls(anywidget.AnyWidget):
     ``EpisodeView.overlay``), for the ``params`` and ``seed`` they name. ``state`` (browser → kernel): ``{"seq", "params", "seed", "step"}`` after each
     action, ``step`` None for "the end of the episode". ``drawn``: the ``seq`` of the last state the
     kernel has drawn (the browser shows it as ``data-drawn``, and the state it sent as ``data-sent``).
+    ``image_alt``: the episode picture's alternative text; ``button_names``: ▶ Play's buttons' names.
     """
 
     _esm = PANEL_ESM
@@ -56,3 +69,5 @@ class PanelControls(anywidget.AnyWidget):
     drawn = traitlets.Int(0).tag(sync=True)
     overlay = traitlets.Dict(allow_none=True, default_value=None).tag(sync=True)
     overlay_png = traitlets.Bytes(b"").tag(sync=True)
+    image_alt = traitlets.Unicode("").tag(sync=True)
+    button_names = traitlets.Dict(PLAY_BUTTON_NAMES).tag(sync=True)

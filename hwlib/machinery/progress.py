@@ -42,6 +42,7 @@ class Progress:
         self.title, self.total, self.unit = title, max(int(total), 1), unit
         self.done = 0
         self.detail = ""
+        self.note = ""  # said after "done in ..." (e.g. that a stored result was used)
         self.started = self._drawn = None
         self.status = "running"
         self.widget = None
@@ -93,7 +94,7 @@ class Progress:
         parts = [f"{self.title}: {self.done} of {self.total} {self.unit}".rstrip() if counted else self.title]
         if self.status == "done":
             return " · ".join([f"{self.title}: {self.total} {self.unit}".rstrip() if counted else self.title,
-                               f"done in {format_seconds(elapsed)}"])
+                               f"done in {format_seconds(elapsed)}", *([self.note] if self.note else [])])
         if self.detail:
             parts.append(self.detail)
         if self.status == "running":

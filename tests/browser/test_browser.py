@@ -98,8 +98,10 @@ def chromium():
 @pytest.fixture(scope="module")
 def lab(chromium, tmp_path_factory):
     """JupyterLab serving a copy of the kit's notebooks, so the test can never change them (and the
-    kit's example recordings beside them, where the p2 notebook's players find them)."""
+    kit's example recordings beside them, where the p2 notebook's players find them, and ``hwlib/``, where
+    the TODOs' links lead; the kernels import the kit's own)."""
     root = tmp_path_factory.mktemp("lab-root")
+    shutil.copytree(KIT_ROOT / "hwlib", root / "hwlib", ignore=shutil.ignore_patterns("__pycache__"))
     (root / "notebooks").mkdir()
     for notebook in NOTEBOOKS.glob("*.ipynb"):
         shutil.copy2(notebook, root / "notebooks" / notebook.name)
@@ -522,6 +524,137 @@ def test_p1_slider_panel_in_jupyterlab(p1):
         check_long_texts(page, panel, layout)
         problems = output_problems(page, f".jp-NotebookPanel .jp-OutputArea-output:has({PANEL})")
         assert not problems, problems
+
+
+def test_p1_panel_and_check_output_for_keyboard_and_screen_reader(p1):
+    """axe-core finds no serious or critical violation in the panel or in a check cell's output, and the panel
+    works without a mouse, as a screen reader reads it: Tab reaches every control, each with a name and a
+    visible focus outline; a slider moved by the arrow keys reads its value as its readout shows it; the new
+    reward is announced (a live region); the picture's alternative text says the reward and the step; a
+    preset and ▶ Play work from the keyboard; and Enter on a TODO's link opens its file in this JupyterLab."""
+    page, _ = p1
+    with screenshot_on_failure(page, "p1-keyboard"):
+        panel = find_panel(page)
+        from accessibility import serious_violations
+
+        found = serious_violations(page, ".jp-NotebookPanel .jp-OutputArea-output .hwlib-slider-panel")
+        assert not found, "axe-core on the slider panel:\n" + "\n".join(found)
+        page.evaluate("""() => {
+            const cell = [...document.querySelectorAll('.jp-NotebookPanel .jp-CodeCell')]
+                .find(c => (c.querySelector('.cm-content')?.innerText ?? '').startsWith('check('));
+            cell.querySelector('.jp-OutputArea').setAttribute('data-axe-check-output', '');
+        }""")
+        found = serious_violations(page, "[data-axe-check-output]")
+        assert not found, "axe-core on a check cell's output:\n" + "\n".join(found)
+        check_tab_order(panel)
+        check_keys_are_announced(panel)
+        check_links_open_in_this_jupyterlab(page)
+
+
+FOCUSED_JS = """(panel) => {
+    const element = document.activeElement;
+    const style = getComputedStyle(element);
+    const slider = element.closest('.widget-hslider, .widget-text');
+    return {
+        inside: panel.contains(element),
+        name: element.getAttribute('aria-label') || element.textContent.trim() || slider?.querySelector('.widget-label')?.textContent.trim() || '',
+        what: element.getAttribute('role') || element.tagName.toLowerCase(),
+        outline: style.outlineStyle !== 'none' && parseFloat(style.outlineWidth) >= 2 ? style.outlineWidth : null,
+    };
+}"""
+
+
+def check_tab_order(panel):
+    """From the first θ slider, Tab visits every control of the panel, each named and outlined when focused."""
+    page = panel.page
+    panel.evaluate("element => element.scrollIntoView({block: 'start'})")
+    slider(panel, THETA_LABELS[0]).locator(".noUi-handle").focus()
+    page.keyboard.press("Shift+Tab")  # and back: θ₁ focused by the keyboard (after a click, .focus() shows no outline)
+    page.keyboard.press("Tab")
+    visited = [panel.evaluate(FOCUSED_JS, panel.element_handle())]
+    while len(visited) < 40:
+        page.keyboard.press("Tab")
+        focused = panel.evaluate(FOCUSED_JS, panel.element_handle())
+        if not focused["inside"]:
+            break
+        visited.append(focused)
+    sliders = [entry["name"] for entry in visited if entry["what"] == "slider"]
+    buttons = [entry["name"] for entry in visited if entry["what"] == "button"]
+    assert sliders == [*THETA_LABELS, TIME_STEP_LABEL], f"Tab reaches the sliders {sliders}: {visited}"
+    assert {"always left", "always right", "Play the episode"} <= set(buttons), f"Tab reaches the buttons {buttons}: {visited}"
+    unnamed = [entry for entry in visited if not entry["name"]]
+    unoutlined = [entry for entry in visited if not entry["outline"]]
+    assert not unnamed, f"focused controls without a name: {unnamed}"
+    assert not unoutlined, f"focused controls without a visible outline (2 px or more): {unoutlined}"
+
+
+def check_keys_are_announced(panel):
+    """A preset by Enter, θ₄ by the arrow keys, ▶ Play by Space: what a screen reader reads follows."""
+    from playwright.sync_api import expect
+
+    from hwlib.widgets import PRESETS
+
+    page = panel.page
+    status = panel.locator(".hwlib-status")
+    assert status.get_attribute("aria-live") == "polite" and status.get_attribute("role") == "status"
+    panel.evaluate("""element => {
+        const status = element.querySelector('.hwlib-status');
+        window.hwlibAnnounced = [];
+        new MutationObserver(() => window.hwlibAnnounced.push(status.textContent.trim()))
+            .observe(status, {childList: true, characterData: true, subtree: true});
+    }""")
+    panel.locator("button.widget-button", has_text=re.compile(r"^\s*always left\s*$")).focus()
+    page.keyboard.press("Enter")
+    check_panel_shows(panel, PRESETS["always left"], "after Enter on the 'always left' preset")
+    press_keys(panel, THETA_LABELS[3], "ArrowLeft", 30)
+    params = (*PRESETS["always left"][:3], grid(-0.3))
+    reward = check_panel_shows(panel, params, "after 30 presses of ArrowLeft on θ₄")
+    handle = slider(panel, THETA_LABELS[3]).locator(".noUi-handle")
+    readout = slider(panel, THETA_LABELS[3]).locator(".widget-readout").inner_text().strip()
+    expect(handle).to_have_attribute("aria-valuetext", readout)
+    assert re.fullmatch(r"[-\u2212]?\d+\.\d\d", readout), readout
+    assert re.fullmatch(r"-?\d+(\.\d{1,2})?", handle.get_attribute("aria-valuenow")), handle.get_attribute("aria-valuenow")
+    announced = page.evaluate("window.hwlibAnnounced")
+    assert any(text.startswith(f"Total reward: {reward} ") for text in announced), f"the live region said {announced}"
+    alt = panel.locator("img.hwlib-episode").get_attribute("alt")
+    assert f"total reward {reward} " in alt and f"at step {reward} of {reward}" in alt and "θ = (0.00, 0.00, 0.00, -0.30)" in alt, alt
+    # ▶ Play by the keyboard: Space starts it from step 0; the picture's text follows the step it stops at.
+    panel.locator(".widget-play button[aria-label='Play the episode']").focus()
+    page.keyboard.press("Space")
+    readout = slider(panel, TIME_STEP_LABEL).locator(".widget-readout")
+    page.wait_for_function("([element, end]) => Number(element.textContent) < end", arg=[readout.element_handle(), reward],
+                           timeout=PLAY_TIMEOUT_MS)
+    expect(readout).to_have_text(str(reward), timeout=PLAY_TIMEOUT_MS)
+    expect(panel.locator("img.hwlib-episode")).to_have_attribute("alt", re.compile(rf"at step {reward} of {reward}\.$"),
+                                                                  timeout=WIDGET_TIMEOUT_MS)
+
+
+def check_links_open_in_this_jupyterlab(page):
+    """Enter on either link of a TODO opens the file in a tab of this JupyterLab: no new browser tab."""
+    from playwright.sync_api import expect
+
+    for text in ("hwlib/policy_search.py", re.compile(r"^line \d+$")):
+        link = page.locator(".jp-RenderedMarkdown", has_text="eval_params(params, num_rollouts, seed)").first.locator("a", has_text=text)
+        pages = len(page.context.pages)
+        page.evaluate("""() => { window.hwlibEvents = [];
+            for (const kind of ['keydown', 'click']) document.addEventListener(kind, event => window.hwlibEvents.push(
+                `${kind} ${event.key ?? ''} on ${event.target.tagName} (prevented ${event.defaultPrevented})`), true); }""")
+        link.first.focus()
+        page.keyboard.press("Enter")
+        tab = page.locator(".lm-TabBar-tab .lm-TabBar-tabLabel", has_text=re.compile(r"^policy_search\.py$"))
+        try:
+            expect(tab.first).to_be_visible(timeout=WIDGET_TIMEOUT_MS)
+        except AssertionError:
+            pytest.fail(f"Enter on the link {text!r} opened no editor tab; events {page.evaluate('window.hwlibEvents')}, "
+                        f"focus on {page.evaluate('document.activeElement.outerHTML.slice(0, 200)')}, pages {len(page.context.pages)}")
+        page.wait_for_timeout(1000)  # a new browser tab would have opened by now
+        opened = page.context.pages[pages:]
+        for extra in opened:
+            extra.close()
+        assert not opened, f"Enter on the link {text!r} opened a new browser tab: {[extra.url for extra in opened]}"
+        menu(page, "File", "Close Tab")  # the editor's: the next link must open it anew
+        expect(tab).to_have_count(0)
+        page.locator(".lm-TabBar-tab .lm-TabBar-tabLabel", has_text=P1_NOTEBOOK).first.click()
 
 
 def find_panel(page):

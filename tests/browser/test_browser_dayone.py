@@ -4,8 +4,9 @@
   click on the file browser's root shows ``hwlib/`` beside ``notebooks/``, and one click on a
   TODO's link (1.1.1's, 1.3.2's) opens its file in an editor tab, scrolled to the TODO: its comment
   and stub on screen, with the function's ``def`` line above them.
-- **Notebook 7**, under a JupyterHub's base URL: a TODO's "Notebook 7" link opens its file in
-  Notebook 7's editor (not the raw, read-only ``/files/`` page).
+- **Notebook 7**, under a JupyterHub's base URL: a TODO's second link ("VS Code: line N", the form VS Code
+  follows) opens its file, read-only, in a new browser tab (Notebook 7's way for a file it does not edit
+  from a link; its students open the file from its file browser to edit it: docs/student-README.md).
 - **The untouched student edition.** Run All stops at the first cell that needs a TODO; its
   output, on screen without scrolling, begins with "TODO 1.1.1 is not done yet". Then every
   code cell is run in turn (Shift+Enter, as a student steps through): each cell that needs a
@@ -202,9 +203,9 @@ def test_quick_start_serves_the_kit_so_hwlib_is_one_click_away(page, day_one_lab
     shut_kernels(day_one_lab)
 
 
-def test_notebook7_link_opens_the_todos_file_in_its_editor_under_a_hub_base_url(page, day_one_notebook7):
-    """Notebook 7 opens a link it handles as the raw file (/files/...); the TODO's second link it leaves to
-    the browser, which resolves it against the page, base URL and all, to Notebook 7's editor."""
+def test_notebook7_link_opens_the_todos_file_under_a_hub_base_url(page, day_one_notebook7):
+    """Notebook 7 opens a link to a file that is not a notebook in a new tab, read-only (its ``/tree/`` page
+    sends a file to ``/files/``); the TODO's second link, resolved under the base URL, shows the TODO's code."""
     with screenshot_on_failure(page, "dayone-notebook7"):
         page.goto(day_one_notebook7.url(f"notebooks/{P1}"), timeout=TIMEOUT_MS)
         cell = page.locator(".jp-RenderedMarkdown", has_text="CartPoleLinearPolicy.__call__").first
@@ -212,16 +213,13 @@ def test_notebook7_link_opens_the_todos_file_in_its_editor_under_a_hub_base_url(
         link.wait_for(timeout=TIMEOUT_MS)
         with page.context.expect_page() as opened:
             link.click()
-        editor = opened.value
+        shown = opened.value
         try:
-            editor.wait_for_load_state(timeout=TIMEOUT_MS)
-            assert urllib.parse.urlsplit(editor.url).path == "/user/student/notebooks/hwlib/cartpole.py", editor.url
-            content = editor.locator(".jp-FileEditor .cm-content").first
-            content.wait_for(timeout=TIMEOUT_MS)
-            editor.locator(".jp-FileEditor .cm-line", has_text='"""CartPole').first.wait_for(timeout=CELL_TIMEOUT_MS)
-            assert content.get_attribute("contenteditable") == "true", "the file opened read-only"
+            shown.wait_for_load_state(timeout=TIMEOUT_MS)
+            assert urllib.parse.urlsplit(shown.url).path == "/user/student/files/hwlib/cartpole.py", shown.url
+            assert 'raise TodoNotDone("1.1.1")' in shown.locator("body").inner_text(timeout=CELL_TIMEOUT_MS)
         finally:
-            editor.close()
+            shown.close()
     shut_kernels(day_one_notebook7)
 
 

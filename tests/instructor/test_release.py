@@ -89,14 +89,14 @@ def test_instructor_files_are_left_out_and_the_rest_is_there(edition):
 
 def test_the_editions_requirements_are_the_kits_without_the_instructors_own(edition):
     """Issue 32.3: the edition installs what the student's side runs; a requirement whose comment
-    says "Instructor's kit only:" (the test command's -n 2, the similarity report's copydetect) stays
-    with the instructor."""
+    says "Instructor's kit only:" (the test command's -n 2, the similarity report's copydetect, the browser
+    tests' axe-core) stays with the instructor."""
     def requirements(text):
         return [line.split(">")[0].split("=")[0] for line in text.splitlines() if line.strip() and not line.startswith("#")]
 
     kit = requirements((REPO / "requirements.txt").read_text())
     students = requirements((edition / "requirements.txt").read_text())
-    instructors = ("pytest-xdist", "copydetect")
+    instructors = ("pytest-xdist", "copydetect", "axe-playwright-python")
     assert set(instructors) <= set(kit) and not set(instructors) & set(students)
     assert students == [name for name in kit if name not in instructors]
     assert "Instructor's kit only" not in (edition / "requirements.txt").read_text()

@@ -97,15 +97,14 @@ def todo_link_line(todo, relative):
 
 
 def todo_links(todo, relative):
-    """A TODO's two links to its code. The first opens the editor at the TODO in JupyterLab (``#line=``,
-    0-based) and the file in VS Code. Notebook 7 opens any link it handles as the raw, read-only file
-    (``/files/``), so the second names the line and is one Notebook 7 leaves to the browser: the ``%``
-    that ends its fragment is no valid URL escape, and a Jupyter front end does not handle such a link.
-    The browser then resolves it against the page (``.../notebooks/notebooks/p1_....ipynb``, under any
-    base URL) to Notebook 7's page for the file, its editor (at the top: Notebook 7 reads no line from
-    a URL); VS Code reads ``#L<line>`` (1-based)."""
+    """A TODO's two links to its code, both of a form JupyterLab opens in its own editor (never a second
+    JupyterLab in a new browser tab, by mouse or by Enter). The first puts JupyterLab's editor at the TODO
+    (``#line=``, 0-based). The second names the line and takes VS Code there (``#L<line>``, 1-based: VS Code
+    1.83 and later keep a relative link's fragment and read its leading ``L<digits>``); JupyterLab opens
+    the file at its top. Notebook 7 shows either link's file read-only (its ``/tree/`` page sends a file
+    to ``/files/``): its students open the file from its file browser (docs/student-README.md)."""
     line = todo_link_line(todo, relative)
-    return f"[`{relative}`](../{relative}#line={line}) (Notebook 7: [line {line + 1}](../{relative}#L{line + 1}%))"
+    return f"[`{relative}`](../{relative}#line={line}) (VS Code: [line {line + 1}](../{relative}#L{line + 1}))"
 
 
 def test_every_todo_links_to_its_code_at_its_todo():

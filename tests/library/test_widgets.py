@@ -24,6 +24,7 @@ from hwlib.widgets import (
     PLAY_INTERVAL_MS,
     PanelControls,
     SliderPanel,
+    episode_description,
     render_panel,
     reward_text,
     simulate_episode,
@@ -189,6 +190,36 @@ def test_panel_names_every_control_and_gives_each_a_tooltip():
     assert panel.play.description == "", "a Play shows its tooltip only without a description"
     assert panel.image.tooltip is None
     assert all(slider.min <= -2 and slider.max >= 2 and slider.step == 0.01 for slider in panel.param_sliders)
+
+
+@pytest.mark.todo("1.1.1")
+def test_the_picture_is_described_in_words_a_screen_reader_reads(monkeypatch):
+    """The picture's alternative text (the front-end part sets it as the image's ``alt``) says what it shows,
+    its numbers rounded as the readouts show them; ▶ Play's icon buttons get names; the status line is live."""
+    params = (0.0, 0.0, 0.0, slider_grid_value(-0.3))
+    assert params[3] != -0.3
+    frame = render_panel(params, 0, step=71)
+    reward = kit_reward(params, 0)
+    assert frame.description == episode_description(params, 0, frame.episode, 71) == (
+        f"The episode of θ = (0.00, 0.00, 0.00, -0.30) from seed 0: total reward {reward} (the cart ran off the track past "
+        f"±2.4 m). The plots show the cart position and the pole angle over its {reward} steps with their limits; the "
+        f"drawing shows the cart and pole at step 71 of {reward}.")
+    panel = SliderPanel(params)
+    assert panel.controls.image_alt == render_panel(params, 0).description
+    panel.step_slider.value = 10
+    assert panel.controls.image_alt.endswith(f"at step 10 of {reward}.")
+    with monkeypatch.context() as patch:
+        patch.setattr("hwlib.widgets.simulate_episode", lambda params, seed: 1 / 0)
+        panel.param_sliders[0].value = 0.5
+        assert panel.controls.image_alt == "The picture says: Could not play the episode ZeroDivisionError: division by zero"
+    assert set(panel.controls.button_names) == {"fa-play", "fa-pause", "fa-stop", "fa-retweet"}
+    assert all(len(name) > 3 for name in panel.controls.button_names.values())
+    from hwlib.machinery.panel_controls import PANEL_CSS, PANEL_ESM
+
+    script = PANEL_ESM.read_text(encoding="utf-8")
+    for made in ('"aria-label"', '"aria-valuetext"', '"aria-live", "polite"', '"alt"'):
+        assert made in script, f"the front-end part no longer sets {made}"
+    assert ":focus-visible" in PANEL_CSS and "outline: 3px solid" in PANEL_CSS
 
 
 @pytest.mark.todo("1.1.1")  # the episode's length is the student's policy's

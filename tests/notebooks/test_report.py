@@ -507,6 +507,30 @@ def test_answers_html_reads_offline_with_the_figures_inline(out_dir):
     assert STUDENT_NAME in page
 
 
+def test_the_pages_have_no_serious_accessibility_violation(out_dir):
+    """axe-core (``tests/instructor/accessibility.py``) on answers.html and the executed notebooks' pages, as
+    Chromium shows them: no serious or critical violation (contrast, links told by colour alone, names, alt)."""
+    if report.chromium_path() is None:
+        if os.environ.get("CI") == "true":
+            pytest.fail("Chromium is missing in CI, so the pages cannot be checked (.ci/run installs Debian's chromium)")
+        pytest.skip("Chromium is not installed (apt-get install chromium): the pages cannot be checked here")
+    from accessibility import serious_violations
+    from playwright.sync_api import sync_playwright
+
+    found = {}
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(report.chromium_path()), args=report.CHROMIUM_ARGS)
+        try:
+            page = browser.new_page()
+            for name in (report.ANSWERS_HTML, *(notebook.replace(".ipynb", ".html") for notebook in report.NOTEBOOKS)):
+                page.goto((out_dir / name).as_uri())
+                found[name] = serious_violations(page)
+        finally:
+            browser.close()
+    assert not any(found.values()), "axe-core on the report's pages:\n" + "\n".join(
+        f"{name}: {line}" for name, lines in found.items() for line in lines)
+
+
 # --- the numbers: the notebooks' own, printed the same way ---------------------------------------------
 
 
