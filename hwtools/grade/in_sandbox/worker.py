@@ -1,4 +1,4 @@
-"""The entry point of every sandboxed grading process: ``python worker.py KIT_DIR [CPU_SECONDS MEMORY_BYTES]``.
+"""The entry point of every sandboxed grading process: ``python worker.py KIT_DIR [CPU_SECONDS MEMORY_BYTES OPEN_FILES]``.
 
 It sets its own limits, keeps its standard input and output for the grader's messages (and
 sends whatever the homework prints to the error stream instead), puts ``KIT_DIR`` first on its
@@ -14,13 +14,14 @@ import os
 import sys
 
 
-def _set_limits(cpu_seconds, memory_bytes):
+def _set_limits(cpu_seconds, memory_bytes, open_files):
     try:
         import resource  # noqa: PLC0415
     except ImportError:  # Windows: no such limits (the grader's wall clock still ends the run)
         return
 
-    for limit, value in ((resource.RLIMIT_CPU, cpu_seconds), (resource.RLIMIT_AS, memory_bytes)):
+    for limit, value in ((resource.RLIMIT_CPU, cpu_seconds), (resource.RLIMIT_AS, memory_bytes),
+                         (resource.RLIMIT_NOFILE, open_files)):
         if value:
             soft, hard = resource.getrlimit(limit)
             value = value if hard == resource.RLIM_INFINITY else min(value, hard)
@@ -29,7 +30,7 @@ def _set_limits(cpu_seconds, memory_bytes):
 
 def main(argv):
     kit_dir = os.path.realpath(argv[1])
-    _set_limits(int(argv[2]) if len(argv) > 2 else 0, int(argv[3]) if len(argv) > 3 else 0)
+    _set_limits(*(int(argv[index]) if len(argv) > index else 0 for index in (2, 3, 4)))
     requests, answers = os.dup(0), os.dup(1)
     devnull = os.open(os.devnull, os.O_RDONLY)
     os.dup2(devnull, 0)
