@@ -37,14 +37,24 @@ CANARY = "HWGRADE_CANARY"
 pytestmark = pytest.mark.timeout(300)
 
 
+LEAVE_SESSION = textwrap.dedent("""
+    def leave_session():  # a child's escape from the run's session, where it may (the sandboxes' filter refuses it)
+        try:
+            os.setsid()
+        except OSError:
+            pass
+""")
+
+
 def make_kit(folder, body):
-    """A kit whose hwlib.logreg.sigmoid(z) runs ``body`` (which sets ``values``), with the grader's
-    process side (``_hwgrade/``) that every kit the grader runs holds."""
+    """A kit whose hwlib.logreg.sigmoid(z) runs ``body`` (which sets ``values`` and may call
+    ``leave_session()``), with the grader's process side (``_hwgrade/``) that every kit the grader
+    runs holds."""
     package = folder / "kit" / "hwlib"
     package.mkdir(parents=True)
     (package / "__init__.py").write_text("")
-    code = "import os, sys, time\nimport numpy as np\n\n\ndef sigmoid(z):\n" + textwrap.indent(body, "    ") + \
-        "\n    return values\n"
+    code = "import os, sys, time\nimport numpy as np\n\n\n" + LEAVE_SESSION + "\n\ndef sigmoid(z):\n" + \
+        textwrap.indent(body, "    ") + "\n    return values\n"
     (package / "logreg.py").write_text(code)
     for relative, text in kits.sandboxed_files().items():
         (folder / "kit" / relative).parent.mkdir(parents=True, exist_ok=True)
@@ -270,7 +280,7 @@ def test_a_child_that_holds_the_error_stream_does_not_hold_the_grader(mode, requ
     kit = make_kit(tmp_path, textwrap.dedent(f"""
         ready, written = os.pipe()
         if os.fork() == 0:
-            os.setsid()
+            leave_session()
             sys.stderr.write("the child holds stderr\\n")
             sys.stderr.flush()
             os.close(written)  # the parent answers once this line is written (the run is killed right after)
@@ -310,7 +320,7 @@ def test_a_fork_does_not_outlive_the_run(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
         if os.fork() == 0:
-            os.setsid()  # leaves the worker's session and process group
+            leave_session()  # leaves the worker's session and process group
             if os.fork() == 0:
                 while True:
                     time.sleep(0.05)
@@ -331,7 +341,7 @@ def test_a_setsid_child_with_an_empty_environment_does_not_outlive_the_run(mode,
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
         if os.fork() == 0:
-            os.setsid()
+            leave_session()
             if os.fork() == 0:
                 os.execve("/bin/sleep", ["sleep", "2999.5"], {})
             os._exit(0)
@@ -480,7 +490,7 @@ def test_the_orphans_of_a_user_run_are_reaped_so_its_user_can_fork_again(user, t
     kit = make_kit(tmp_path, textwrap.dedent("""
         for _ in range(5):
             if os.fork() == 0:
-                os.setsid()
+                leave_session()
                 if os.fork() == 0:
                     time.sleep(600)
                 os._exit(0)
@@ -664,7 +674,7 @@ def test_a_sweeper_that_stops_every_process_of_its_user_cannot_hold_the_grader(u
         import signal
         worker = os.getpid()
         if os.fork() == 0:
-            os.setsid()
+            leave_session()
             while os.getppid() == worker:  # the run is over when the worker is gone
                 time.sleep(0.001)
             while True:  # one system call stops every other process of the user
@@ -711,7 +721,8 @@ def test_a_kill_as_the_run_s_user_that_is_stopped_is_ended_by_root(user, monkeyp
 
 
 ATTACKS = ("file", "folder", "symlink", "fifo", "socket file", "unnamed file", "memory file", "preallocated",
-           "socket pair", "namespace", "shared memory", "bigger pipe", "byte-range lock", "file watch")
+           "socket pair", "namespace", "shared memory", "bigger pipe", "byte-range lock", "file watch",
+           "session of its own")
 MAKE_EVERYTHING = textwrap.dedent("""
     import ctypes, fcntl, socket, stat
     libc = ctypes.CDLL(None, use_errno=True)
@@ -752,6 +763,18 @@ MAKE_EVERYTHING = textwrap.dedent("""
     held = os.open(sys.executable, os.O_RDONLY)
     attempt("byte-range lock", lambda n: fcntl.lockf(held, fcntl.LOCK_SH, 1, 2 * n), tries)  # each one kernel memory
     attempt("file watch", lambda n: call(libc.inotify_add_watch(libc.inotify_init(), b"/usr", 1)))
+
+    def new_session(n):  # a child's: the worker leads its session already
+        child = os.fork()
+        if child == 0:
+            try:
+                os.setsid()
+                os._exit(0)
+            except OSError:
+                os._exit(1)
+        if os.waitpid(child, 0)[1]:
+            raise OSError("refused")
+    attempt("session of its own", new_session)  # a share of the CPU of its own (the scheduler's autogroup)
     values = np.array([made[kind] for kind in {attacks!r}], dtype=float)
 """)
 
@@ -763,7 +786,7 @@ def test_a_run_makes_no_file_no_socket_and_no_namespace(mode, request, tmp_path)
     the user fallback, whose 0.25 s poll counted regular files only), preallocated space past the
     file-size limit, a memory file, descriptors to pass on a socket pair, a namespace of its own
     (where a nested one mounted a tmpfs of 1.5 GiB), System V shared memory, a pipe of 1 MiB,
-    byte-range locks and a watch on a folder: the kernel refuses each (the seccomp filter, ``confine.py``), so the run holds no disk and no such
+    byte-range locks, a watch on a folder and a child in a session of its own: the kernel refuses each (the seccomp filter, ``confine.py``), so the run holds no disk and no such
     memory at any moment and leaves nothing."""
     box = request.getfixturevalue(mode)
     token, tries = f"hwgrade-made-{os.getpid()}-{time.monotonic_ns()}", 100

@@ -36,6 +36,9 @@ the worker. A filter stays on across ``exec`` and ``fork`` and cannot be removed
   pages moved into pipes by reference (``splice``, ``vmsplice``, ``tee``): what is left is each
   pipe's 16 pages, bounded by the open-file and process limits (docs/grading.md);
 * ``io_uring_setup`` (its requests bypass this filter);
+* ``setsid``: every process of a run stays in the session the run starts in (bubblewrap's
+  ``--new-session``, the user fallback's ``setpriv`` in a session of its own), so the scheduler's
+  autogroup gives the run as a whole one share of the CPU, however many processes it forks;
 * ``unshare``, ``setns``, and ``clone`` with namespace flags (``clone3``: ENOSYS, so that C
   libraries fall back to ``clone``, whose flags a filter can read): no namespace of the run's own,
   where it could mount a file system or become root.
@@ -50,7 +53,7 @@ import sys
 
 SHARED_STATE = ("shmget", "semget", "msgget", "mq_open", "add_key", "request_key", "keyctl", "memfd_create",
                 "memfd_secret", "splice", "vmsplice", "tee", "bpf", "inotify_init", "inotify_init1", "fanotify_init",
-                "io_uring_setup", "unshare", "setns")
+                "io_uring_setup", "unshare", "setns", "setsid")
 NAMES = ("creat", "mkdir", "mkdirat", "mknod", "mknodat", "symlink", "symlinkat", "link", "linkat", "rename",
          "renameat", "renameat2", "unlink", "unlinkat", "rmdir")  # every call that adds, removes or renames a name
 O_CREAT, O_TMPFILE = 0o100, 0o20000000  # (O_TMPFILE's own bit; glibc's O_TMPFILE adds O_DIRECTORY)
