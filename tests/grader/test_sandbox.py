@@ -888,6 +888,23 @@ def test_bubblewrap_s_writable_places_are_its_own_size_limited_tmpfs(isolated, t
     assert values(run(kit, isolated)).tolist() == [bwrap_sandbox.TMPFS_BYTES, bwrap_sandbox.SHM_BYTES]
 
 
+def test_without_prlimit_neither_sandbox_works(user_python, monkeypatch):
+    """Fail closed: without util-linux's prlimit a run's limits (processes, file size, open files)
+    cannot be set, so neither sandbox is used (and a grader with a reference runs no submission)."""
+    which = shutil.which
+    monkeypatch.setattr(shutil, "which", lambda name, *args, **kwargs: None if name == "prlimit" else
+                        which(name, *args, **kwargs))
+    sandbox.probe_isolation.cache_clear()
+    user_sandbox.probe.cache_clear()
+    try:
+        for isolation in ("bwrap", "user"):
+            with pytest.raises(RuntimeError, match="no sandbox: prlimit .*missing"):
+                Sandbox(python=user_python, isolation=isolation)
+    finally:
+        sandbox.probe_isolation.cache_clear()
+        user_sandbox.probe.cache_clear()
+
+
 def test_without_the_seccomp_filter_no_student_code_runs(monkeypatch, tmp_path):
     """Fail closed: where the filter cannot be compiled or loaded (the system's Python has no
     python3-seccomp), neither sandbox works, so a grader with a reference runs no submission, and

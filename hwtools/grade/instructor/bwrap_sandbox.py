@@ -177,6 +177,8 @@ def probe_isolation(python):
     bwrap = shutil.which("bwrap")
     if bwrap is None:
         return False, "bubblewrap (bwrap) is not installed (Debian/Ubuntu: apt-get install bubblewrap)"
+    if shutil.which("prlimit") is None:  # no run without its limits (processes, file size, open files...)
+        return False, "prlimit (util-linux) is missing, so no run's limits can be set"
     try:
         program = seccomp_program()
     except OSError as error:

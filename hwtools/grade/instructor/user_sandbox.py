@@ -304,8 +304,9 @@ def probe(python):
     pool = users()
     if not pool:
         return False, "no sandbox users (as root: python -m hwtools.grade.instructor.user_sandbox create; setup.sh does it)"
-    if not shutil.which("setpriv"):
-        return False, "setpriv (util-linux) is missing"
+    for tool in ("setpriv", "prlimit"):  # prlimit: a run's limits (its processes, file size, open files...)
+        if not shutil.which(tool):
+            return False, f"{tool} (util-linux) is missing"
     try:
         check = subprocess.run([SYSTEM_PYTHON, "-I", "-c", "import seccomp; print(seccomp.get_api())"],
                                capture_output=True, text=True, timeout=60, env={})
