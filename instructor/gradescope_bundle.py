@@ -47,7 +47,7 @@ SETUP_SH = """\
 # Gradescope runs this once, as root, while it builds the autograder's image: the only step with
 # network access. It installs Python, bubblewrap (the sandbox for students' code) and, for
 # containers where bubblewrap cannot create namespaces, the fallback's tools (setpriv, and
-# python3-seccomp for the filter that refuses network sockets) and its users; then a virtual
+# python3-seccomp for the filter of every run: no socket, no file made) and its users; then a virtual
 # environment with the packages the graded code imports, and says which isolation will be used.
 set -euo pipefail
 ROOT="${AUTOGRADER_ROOT:-/autograder}"
@@ -66,9 +66,6 @@ cd "$SOURCE"
 "$ROOT/venv/bin/python" -c "import numpy, gymnasium, hwtools.grade"
 # The fallback's users (one per run at a time): hwgrade1..hwgrade8, no login, no home.
 "$ROOT/venv/bin/python" -m hwtools.grade.instructor.user_sandbox create
-# No folder but /tmp, /var/tmp, /dev/shm, /run/lock (emptied of a run's files after it) stays
-# writable by every user: nothing a run leaves there reaches a later run.
-"$ROOT/venv/bin/python" -m hwtools.grade.instructor.user_sandbox close-shared
 # What runs later is root's to change: the sandbox's users may run the venv, never write it.
 chown -R root:root "$ROOT/venv" "$SOURCE"
 chmod -R go-w "$ROOT/venv" "$SOURCE"

@@ -50,7 +50,6 @@ KNOWN_OBJECTIVE = {"train_known"}  # probes whose eval_params is the case's know
 STOPS = {
     "timeout": "the time limit was reached",
     "ended": "the worker process ended before answering",
-    "disk": "the run's files passed the disk limit",
     "garbled": "the worker sent something that is not a valid message",
     "violation": "the worker broke the protocol (an answer out of turn, a second answer, or one to a request "
                  "never made)",

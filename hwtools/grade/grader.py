@@ -264,9 +264,10 @@ class Grader:
             return None
         if not self.sandbox.isolated and self.isolation != "none":
             return (f"no sandbox works here, so no student code is run ({self.sandbox.how}). Fix the machine: install "
-                    "bubblewrap (apt-get install bubblewrap), or, where it cannot create namespaces, as root create the "
-                    "fallback's users (python -m hwtools.grade.instructor.user_sandbox create) and give a Python they can run "
-                    "(python -m hwtools.grade.instructor.user_sandbox python FOLDER, then --python FOLDER/bin/python); or pass "
+                    "bubblewrap and the sandbox's seccomp filter (apt-get install bubblewrap python3-seccomp), or, where "
+                    "it cannot create namespaces, as root create the fallback's users (python -m "
+                    "hwtools.grade.instructor.user_sandbox create) and give a Python they can run (python -m "
+                    "hwtools.grade.instructor.user_sandbox python FOLDER, then --python FOLDER/bin/python); or pass "
                     "--isolation none to accept running untrusted code as yourself")
         exposed = self._exposure()
         if exposed:

@@ -11,17 +11,21 @@ RLIMIT_NPROC, in a user namespace of the run's own: ``host_user_namespace``), an
 * the kit under test (one composite copy of ``hwlib/``), read-only, as ``/kit``;
 * the worker script, read-only, as ``/grader/worker.py``;
 * a fresh, size-limited tmpfs as ``/tmp`` (its home is ``/tmp/home``), a private ``/proc`` and a
-  minimal read-only ``/dev`` whose ``/dev/shm`` is a fresh tmpfs of 16 MiB.
+  minimal read-only ``/dev`` whose ``/dev/shm`` is a fresh tmpfs of 16 MiB;
+
+and runs under the user fallback's seccomp filter (``confine.py``): it makes no file, socket or
+namespace.
 
 bubblewrap itself starts with an empty environment and reads its options from a pipe (``--args``),
 so the sandbox's ``/proc/1`` (bubblewrap's init) shows neither the grader's environment nor the
 host paths of the kit and the worker.
 
 ``user`` (where bubblewrap cannot create namespaces, as in Docker's default seccomp profile, e.g.
-Gradescope): an unprivileged user of its own per run, no network sockets, a private kit folder
-(``user_sandbox.py`` says what that does and does not hide). The pool's users are for students'
-code: a trusted run (``start(..., trusted=True)``: a reference server, no student code in its kit)
-is launched as ``none`` here, as the grader's own user (``run_kind``).
+Gradescope): an unprivileged user of its own per run, the same seccomp filter (no socket, no file
+made anywhere), a private kit folder (``user_sandbox.py`` says what that does and does not hide).
+The pool's users are for students' code: a trusted run (``start(..., trusted=True)``: a reference
+server, no student code in its kit) is launched as ``none`` here, as the grader's own user
+(``run_kind``).
 
 ``none``: a plain subprocess, with the same limits and messages but no isolation;
 ``Sandbox.isolated`` is then False and ``Sandbox.how`` says why. "auto" ends here where nothing
@@ -46,10 +50,11 @@ the servers of its own kit at once) holds the turn for its whole grade (``Sandbo
 On Windows there is no ``flock``: the turn is kept within one grading process only (class
 gradings are Linux's).
 
-Every run has a CPU-time limit, an address-space limit, a file-size limit (``prlimit`` before the
-worker starts, and again by the worker itself before it imports the kit), and a wall-clock
-backstop (``WALL_FACTOR`` times the CPU limit plus ``WALL_SLACK``) against code that sleeps or
-waits: a loaded machine slows a run down without turning it into a time-out. The runs of one
+Every run has a CPU-time limit, an address-space limit, a file-size limit, an open-file limit
+(``MAX_OPEN_FILES`` per process, which with the process limit bounds the pipes a run can fill)
+(``prlimit`` before the worker starts, and again by the worker itself before it imports the kit),
+and a wall-clock backstop (``WALL_FACTOR`` times the CPU limit plus ``WALL_SLACK``) against code
+that sleeps or waits: a loaded machine slows a run down without turning it into a time-out. The runs of one
 submission share a wall-clock ``Budget`` too: a run that begins with less of it left than its
 backstop ends when the budget does, and one that begins with none left does not run. The worker's
 error stream goes to a file, never a pipe, so a child that keeps it open cannot hold the grader;
@@ -58,7 +63,7 @@ a thread of its own, ``processes.Pipes``: Windows cannot ``select()`` a pipe), s
 stops reading is killed then. At the end the whole sandbox is killed (the process namespace, the
 run's user, or the process group and an environment token; on Windows the process tree, and on
 macOS and Windows, without ``/proc``, no environment token is looked for). Windows has no CPU-time,
-address-space or file-size limit: there the wall-clock backstop ends a run.
+address-space, file-size or open-file limit: there the wall-clock backstop ends a run.
 
 The grader's own process can be put under a memory limit too (``limit_own_memory``; the command
 lines do), so that nothing a worker sends can take the trusted side down.
@@ -89,9 +94,9 @@ try:  # macOS and Linux; Windows has neither (its runs have no CPU or memory lim
 except ImportError:
     fcntl = resource = None
 try:  # the instructor's kit (the student edition has no sandbox: hwtools/grade/instructor/ is not in it)
-    from hwtools.grade.instructor.bwrap_sandbox import (bwrap_options, grader_makes_namespace, host_user_namespace,
-                                                        options_pipe, probe_isolation, readable_copy, sandbox_init,
-                                                        wait_gone)
+    from hwtools.grade.instructor.bwrap_sandbox import (bwrap_options, data_pipe, grader_makes_namespace,
+                                                        host_user_namespace, options_pipe, probe_isolation,
+                                                        readable_copy, sandbox_init, seccomp_program, wait_gone)
 except ImportError:
     probe_isolation = None
 NO_SANDBOX_HERE = "the student edition has no sandbox (the preview runs the student's own code, unsandboxed)"
@@ -102,8 +107,7 @@ DEFAULT_MEMORY_LIMIT = 1 * GiB  # address space per worker run
 GRADER_MEMORY_LIMIT = 4 * GiB  # address space of the trusted grader itself (command lines)
 WALL_FACTOR, WALL_SLACK = 3.0, 10.0  # the wall-clock backstop: WALL_FACTOR * CPU limit + WALL_SLACK
 MAX_FILE_BYTES = 64 * 1024**2  # any one file a run writes (its error stream included)
-MAX_DISK_BYTES = 256 * 1024**2  # all files a run under the user fallback holds at once (bubblewrap: its tmpfs sizes)
-DISK_POLL_SECONDS = 0.25  # how often the user fallback's files are measured while a run lives
+MAX_OPEN_FILES = 16  # descriptors of each process of a run (the worker needs 7): bounds the pipes it holds
 STDERR_TAIL = 4000  # characters of the worker's error stream kept
 TOKEN_VARIABLE = "HWGRADE_SANDBOX"
 KINDS = ("auto", "bwrap", "user", "none")
@@ -238,25 +242,27 @@ class Sandbox:
     def limits(self, time_limit, kind=None):
         """prlimit's options and the worker's own limit arguments for a run of CPU limit ``time_limit``."""
         cpu = max(1, int(time_limit + 0.999))
-        options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}", "--core=0"]
+        options = [f"--cpu={cpu}:{cpu + 2}", f"--as={self.memory_limit}", f"--fsize={MAX_FILE_BYTES}",
+                   f"--nofile={MAX_OPEN_FILES}", "--core=0"]
         kind = kind or self.kind
         if kind == "user" or kind == "bwrap" and grader_makes_namespace():
             from hwtools.grade.instructor.user_sandbox import MAX_PROCESSES  # noqa: PLC0415
 
             options.append(f"--nproc={MAX_PROCESSES}")
-        return options, [str(cpu), str(self.memory_limit)]
+        return options, [str(cpu), str(self.memory_limit), str(MAX_OPEN_FILES)]
 
-    def command(self, kit_dir, time_limit, run_folder=None, kind=None, userns=None):
+    def command(self, kit_dir, time_limit, run_folder=None, kind=None, userns=None, program=None):
         """The command line of one run (``run_folder``: the user fallback's private folder; ``kind``:
         ``run_kind``'s, default ``self.kind``; ``userns``: bubblewrap's user namespace, where the
-        grader makes it) and the options bubblewrap reads from a pipe (None for the other kinds)."""
+        grader makes it; ``program``: the descriptor bubblewrap reads the seccomp filter from) and the
+        options bubblewrap reads from a pipe (None for the other kinds)."""
         kind = kind or self.kind
         options, limits = self.limits(time_limit, kind)
         prlimit = [shutil.which("prlimit"), *options, "--"] if shutil.which("prlimit") else []
         if kind == "bwrap":
             return (prlimit + [shutil.which("bwrap"), "--args", "{fd}", "--info-fd", "{info}", "--",
                                os.path.abspath(self.python), "-B", "-s", "/grader/worker.py", "/kit"] + limits,
-                    bwrap_options(self.python, kit_dir, userns))
+                    bwrap_options(self.python, kit_dir, program, userns))
         if kind == "user":
             return prlimit + run_folder.command(self.python) + limits, None
         return prlimit + [self.python, "-B", "-s", str(WORKER), str(kit_dir)] + limits, None
@@ -307,10 +313,8 @@ class WorkerProcess:
         self._token = uuid.uuid4().hex
         self._run_folder = self._init = self.group = None
         self.memory_peak = None  # bytes the whole run held at most, where it ran in a cgroup
-        self.disk_used = None  # bytes of files the run held when it passed MAX_DISK_BYTES (user fallback)
-        self._watcher, self._watch_ends = None, threading.Event()
         self.ended = threading.Event()  # set once the run's processes are gone (or given up on) and its turn is free
-        env, cwd, fds, info, userns = {}, self._scratch.name, (), None, None
+        env, cwd, fds, info, userns, program = {}, self._scratch.name, (), None, None, None
         try:
             if self.kind == "user":
                 from hwtools.grade.instructor.user_sandbox import RunFolder  # noqa: PLC0415
@@ -322,9 +326,10 @@ class WorkerProcess:
                 home.mkdir()
                 env = worker_env(str(home)) | {TOKEN_VARIABLE: self._token}
             if self.kind == "bwrap":
+                program = data_pipe(seccomp_program())
                 userns = host_user_namespace()
                 kit_dir = kit_dir if userns is None else readable_copy(kit_dir, self._scratch.name)
-            command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind, userns)
+            command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind, userns, program)
             if self.kind != "none":  # the run as a whole bounded (processes, memory with tmpfs), where it can be
                 from hwtools.grade.instructor.cgroups import RunGroup  # noqa: PLC0415 - Linux only
 
@@ -333,7 +338,7 @@ class WorkerProcess:
                     command = self.group.wrap(command)
             if options is not None:
                 info = os.pipe()
-                fds = (options_pipe(options), info[1]) + (() if userns is None else (userns,))
+                fds = (options_pipe(options), info[1], program) + (() if userns is None else (userns,))
                 command = [part.replace("{fd}", str(fds[0])).replace("{info}", str(info[1])) for part in command]
             self._stderr = open(Path(self._scratch.name) / "stderr", "w+b")  # noqa: SIM115 - closed in finish
             try:
@@ -345,9 +350,6 @@ class WorkerProcess:
                     os.close(fd)
             _LIVE.add(self)
             self._pipes = Pipes(self.process.stdin, self.process.stdout)  # every read and write has a deadline
-            if self._run_folder is not None:
-                self._watcher = threading.Thread(target=self._watch_disk, daemon=True)
-                self._watcher.start()
             if info is not None:
                 self._init = sandbox_init(info[0], self.process.pid)
         except BaseException:
@@ -356,20 +358,9 @@ class WorkerProcess:
         finally:
             if info is not None:
                 os.close(info[0])
-
-    def _watch_disk(self):
-        """The user fallback's disk bound: every DISK_POLL_SECONDS while the run lives, the files its
-        user holds in its home and the shared places are measured; past MAX_DISK_BYTES every
-        process of the user is killed (the run's verdict: "disk")."""
-        from hwtools.grade.instructor.user_sandbox import SHARED_PLACES, disk_used, kill_user  # noqa: PLC0415
-
-        folder = self._run_folder
-        while not self._watch_ends.wait(DISK_POLL_SECONDS):
-            used = disk_used(folder.uid, folder.gid, (str(folder.home), *SHARED_PLACES))
-            if used > MAX_DISK_BYTES:
-                self.disk_used, self._killed = used, True
-                kill_user(folder.uid, folder.gid)
-                return
+            for fd in () if fds else (program, userns):  # not handed to bubblewrap (an error before)
+                if fd is not None:
+                    os.close(fd)
 
     def begin(self):
         """Start the run proper (once; ``send`` calls it): an exclusive run first waits until no other
@@ -410,8 +401,6 @@ class WorkerProcess:
         """The next answer (a dict), or "status:detail" (timeout, ended, garbled)."""
         deadline = self.deadline if deadline is None else min(deadline, self.deadline)
         answer = self._pipes.receive(deadline)
-        if answer == "ended:" and self.disk_used is not None:
-            return "disk:"
         if answer == "ended:" and self._cpu_limit_reached():
             return f"timeout:the CPU-time limit of {self.sandbox.limits(self.time_limit, self.kind)[1][0]} s was reached"
         if isinstance(answer, str) and answer.startswith("timeout:"):
@@ -448,9 +437,6 @@ class WorkerProcess:
     def _cleanup(self):
         try:
             gone = True
-            if self._watcher is not None:  # stopped before the run's user is freed for another run
-                self._watch_ends.set()
-                self._watcher.join()
             if self._run_folder is not None:
                 gone = self._run_folder.end()
             if self._init is not None:

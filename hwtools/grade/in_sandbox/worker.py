@@ -1,4 +1,4 @@
-"""The entry point of every sandboxed grading process: ``python worker.py KIT_DIR [CPU_SECONDS MEMORY_BYTES]``.
+"""The entry point of every sandboxed grading process: ``python worker.py KIT_DIR [CPU_SECONDS MEMORY_BYTES OPEN_FILES]``.
 
 It sets its own limits, keeps its standard input and output for the grader's messages (and
 sends whatever the homework prints to the error stream instead), puts ``KIT_DIR`` first on its
@@ -42,15 +42,15 @@ def set_limit(name, value, hard=True):
         return None
 
 
-def _set_limits(cpu_seconds, memory_bytes):
-    for name, value in (("RLIMIT_CPU", cpu_seconds), ("RLIMIT_AS", memory_bytes)):
+def _set_limits(cpu_seconds, memory_bytes, open_files):
+    for name, value in (("RLIMIT_CPU", cpu_seconds), ("RLIMIT_AS", memory_bytes), ("RLIMIT_NOFILE", open_files)):
         if value:
             set_limit(name, value)
 
 
 def main(argv):
     kit_dir = os.path.realpath(argv[1])
-    _set_limits(int(argv[2]) if len(argv) > 2 else 0, int(argv[3]) if len(argv) > 3 else 0)
+    _set_limits(*(int(argv[index]) if len(argv) > index else 0 for index in (2, 3, 4)))
     requests, answers = os.dup(0), os.dup(1)
     devnull = os.open(os.devnull, os.O_RDONLY)
     os.dup2(devnull, 0)

@@ -5,7 +5,11 @@ What the options give the worker is in ``sandbox.py``'s docstring: new namespace
 own processes, hostname and IPC), an unprivileged uid without capabilities, read-only ``/usr``,
 Python and kit (``/kit``) and worker (``/grader/worker.py``), a fresh size-limited ``/tmp``, a
 private ``/proc``, a minimal read-only ``/dev`` with a fresh size-limited ``/dev/shm``, and only the
-worker's own environment. Every writable place is a tmpfs of the run's own, gone with it.
+worker's own environment. Every writable place is a tmpfs of the run's own, gone with it; and the
+worker runs under the user fallback's seccomp filter (``confine.py``, compiled once by the system's
+Python and loaded by bubblewrap, ``--seccomp``), so it makes no file there (bubblewrap cannot bound a
+tmpfs's number of files, each of which holds kernel memory), no socket and no namespace (the same
+as bubblewrap's ``--disable-userns``, which needs a user namespace that bubblewrap makes itself).
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from hwtools.grade.instructor.user_sandbox import CONFINE, SYSTEM_PYTHON
 from hwtools.grade.kits import WORKER, worker_env
 
 TMPFS_BYTES = 64 * 1024**2  # the run's /tmp
@@ -111,14 +116,29 @@ def readable_copy(kit_dir, folder):
     return copy
 
 
-def bwrap_options(python, kit_dir, userns=None):
+@functools.lru_cache(maxsize=None)
+def seccomp_program():
+    """The run's seccomp filter (``confine.py``), compiled by the system's Python (BPF bytes)."""
+    try:
+        result = subprocess.run([SYSTEM_PYTHON, "-I", str(CONFINE), "--bpf"], capture_output=True, timeout=60, env={},
+                                stdin=subprocess.DEVNULL)
+    except (OSError, subprocess.TimeoutExpired) as error:
+        raise OSError(f"{SYSTEM_PYTHON} cannot compile the sandbox's seccomp filter ({error})") from None
+    if result.returncode != 0 or not result.stdout or len(result.stdout) % 8:
+        raise OSError(f"{SYSTEM_PYTHON} cannot compile the sandbox's seccomp filter (Debian/Ubuntu: apt-get install "
+                      f"python3-seccomp): {' '.join(result.stderr.decode(errors='replace').split())[-200:]}")
+    return result.stdout
+
+
+def bwrap_options(python, kit_dir, program, userns=None):
     """bubblewrap's options (given to it through a pipe, not on its command line) that run a
-    Python on ``kit_dir`` with ``WORKER`` as ``/grader/worker.py`` (in user namespace ``userns``, a
+    Python on ``kit_dir`` with ``WORKER`` as ``/grader/worker.py`` under the seccomp filter read
+    from descriptor ``program`` (``data_pipe(seccomp_program())``), in user namespace ``userns`` (a
     descriptor from ``host_user_namespace``, else in one of bwrap's own)."""
     users = ["--unshare-user"] if userns is None else ["--userns", str(userns)]
-    args = ["--unshare-ipc", "--unshare-pid", "--unshare-net", "--unshare-uts", "--unshare-cgroup-try", *users,
-            "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL", "--die-with-parent", "--new-session",
-            "--hostname", "sandbox"]
+    args = ["--seccomp", str(program), "--unshare-ipc", "--unshare-pid", "--unshare-net", "--unshare-uts",
+            "--unshare-cgroup-try", *users, "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL", "--die-with-parent",
+            "--new-session", "--hostname", "sandbox"]
     args += _system_binds()
     # /tmp first: a Python installed under /tmp (a CI checkout there) is bound on top of it, not hidden by it
     args += ["--proc", "/proc", "--dev", "/dev", "--size", str(SHM_BYTES), "--tmpfs", "/dev/shm", "--remount-ro", "/dev",
@@ -136,11 +156,15 @@ def bwrap_options(python, kit_dir, userns=None):
 
 def options_pipe(options):
     """A pipe's read end holding bubblewrap's options, NUL-separated (``bwrap --args FD``)."""
-    data = b"".join(option.encode() + b"\0" for option in options)
+    return data_pipe(b"".join(option.encode() + b"\0" for option in options))
+
+
+def data_pipe(data):
+    """A pipe's read end holding ``data``, written whole (bubblewrap reads it: ``--args``, ``--seccomp``)."""
     read, write = os.pipe()
     try:
         if len(data) > 60_000:  # a pipe holds 64 KiB before the writer blocks
-            raise ValueError("bubblewrap's options do not fit in a pipe")
+            raise ValueError("what bubblewrap reads does not fit in a pipe")
         os.write(write, data)
     finally:
         os.close(write)
@@ -153,12 +177,18 @@ def probe_isolation(python):
     bwrap = shutil.which("bwrap")
     if bwrap is None:
         return False, "bubblewrap (bwrap) is not installed (Debian/Ubuntu: apt-get install bubblewrap)"
+    if shutil.which("prlimit") is None:  # no run without its limits (processes, file size, open files...)
+        return False, "prlimit (util-linux) is missing, so no run's limits can be set"
+    try:
+        program = seccomp_program()
+    except OSError as error:
+        return False, f"no seccomp filter, so no run: {error}"
     with tempfile.TemporaryDirectory(prefix="hwgrade-probe-") as kit:
         fds = ()
         try:
             userns = host_user_namespace()
-            fds = () if userns is None else (userns,)
-            fds = (options_pipe(bwrap_options(python, kit, userns)), *fds)
+            fds = (data_pipe(program),) + (() if userns is None else (userns,))
+            fds = (options_pipe(bwrap_options(python, kit, fds[0], userns)), *fds)
             code = "import numpy; open('/grader/worker.py').close()"  # both readable by the sandbox's user
             result = subprocess.run([bwrap, "--args", str(fds[0]), "--", os.path.abspath(python), "-c", code],
                                     capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL, env={},

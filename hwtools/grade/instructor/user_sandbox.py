@@ -4,32 +4,28 @@ kit folder only that run can read.
 
     python -m hwtools.grade.instructor.user_sandbox create [--count 8]    # once, as root (setup.sh does it)
     python -m hwtools.grade.instructor.user_sandbox python FOLDER          # a Python those users can run (rm -r it after)
-    python -m hwtools.grade.instructor.user_sandbox close-shared           # as root: no world-writable folder but SHARED_PLACES
 
 What a run gets (the grader must run as root to start it):
 
 * a user of the pool ``hwgrade1`` ... ``hwgradeN`` (``create``) that no other run holds at the same
   time (a lock per user, across processes), switched to with ``setpriv``: its own uid and group, no
   supplementary groups, no capabilities, ``no_new_privs``;
-* a seccomp filter (``confine.py``, with Debian's ``python3-seccomp``: libseccomp's own binding)
-  that refuses every ``socket()`` (no network, no Unix-socket daemons), io_uring and new namespaces;
-* the kit, the worker and a home folder in a private folder (``root:<the run's group>``, 0750;
-  only the home is writable), deleted after the run;
-* the same CPU, memory and file-size limits as in bubblewrap, a cap on its processes, and a bound
-  on all its files (its home and the shared places, measured by ``disk_used`` while it lives:
-  the grader kills the run past ``MAX_DISK_BYTES``).
+* the seccomp filter of every run (``confine.py``, with Debian's ``python3-seccomp``: libseccomp's
+  own binding), which refuses every new file, folder, link or other entry on any disk (and every
+  removal or renaming of one), every socket, io_uring, new namespaces, System V IPC, POSIX message
+  queues, keyrings and memory files: where it may write (``/tmp``, its home on the host's disk) no
+  file system of the run's own can be mounted (Docker without privileges) and no quota is set, so
+  the kernel refuses its files outright, and nothing it could leave outlives it;
+* the kit, the worker and a home folder in a private folder (``root:<the run's group>``, 0750), deleted
+  after the run;
+* the same CPU, memory, file-size and open-file limits as in bubblewrap and a cap on its processes.
 
 When the run ends every process of its user is killed, found by uid (``kill(-1)`` as that user,
 then SIGKILL from root to each one a ``/proc`` scan finds, until none is left), so a child that left
 the process group, cleared its environment or called ``setsid`` dies too. The grader never forks
 to become a pool user: it starts ``setpriv`` with ``close_fds`` (``as_user``: no lock of the grader
 reaches a process a student's code can stop) and waits for it KILL_SECONDS at most, then root
-kills it with SIGKILL, which ends a stopped process too. Nothing a run leaves reaches a later run: after its processes are killed, every file and folder
-its user owns in the places every user may write (SHARED_PLACES: ``/tmp``, ``/var/tmp``,
-``/dev/shm``, ``/dev/mqueue``, ``/run/lock``) and its System V IPC objects are removed
-(``remove_leftovers``); when that fails, no run begins after it (fail closed). ``close-shared``
-(setup.sh) takes every user's write permission away from any other world-writable folder, and
-the seccomp filter refuses System V IPC, POSIX message queues and keyrings outright.
+kills it with SIGKILL, which ends a stopped process too.
 Not hidden (no namespaces): the host's process list and
 command lines, and every file that any user may read. So the reference kit must not be readable
 by other users: the grader checks it as each pool user (``readable_by_pool``) and refuses to
@@ -54,7 +50,6 @@ import pwd
 import re
 import shutil
 import signal
-import stat
 import subprocess
 import sys
 import tempfile
@@ -71,8 +66,6 @@ DEFAULT_USERS = 8
 KILL_SECONDS = 10.0  # the most the grader waits for a process it started as a pool user before root kills it
 KILL = ("/bin/kill", "-s", "KILL", "--", "-1")  # kill(1) (procps or util-linux): every process of its user
 LOCK_DIR = Path("/run/hwgrade-sandbox")
-SHARED_PLACES = ("/tmp", "/var/tmp", "/dev/shm", "/dev/mqueue", "/run/lock")  # writable by every user
-IPC_KINDS = (("shm", "-m"), ("sem", "-s"), ("msg", "-q"))  # /proc/sysvipc/<kind> and ipcrm's option
 GRADED_PACKAGES = ("numpy", "gymnasium")  # what hwlib imports when the worker loads it (with their requirements)
 _THREAD_LOCK = threading.Lock()
 _HELD = set()  # users held by runs of this process
@@ -218,134 +211,6 @@ def kill_user(uid, gid, rounds=50):
     return not processes_of(uid)
 
 
-def _may_enter(info, uid, gid):
-    """Whether user ``uid`` of group ``gid`` may search a folder of ``stat`` result ``info``."""
-    if info.st_uid == uid:
-        return bool(info.st_mode & stat.S_IXUSR)
-    return bool(info.st_mode & (stat.S_IXGRP if info.st_gid == gid else stat.S_IXOTH))
-
-
-def _entries(places, enter):
-    """(path, lstat result) of every entry in the folders ``places`` and, below them, in every
-    folder for which ``enter(info)`` is true; folders that cannot be read are passed over."""
-    pending = [place for place in places if os.path.isdir(place)]
-    while pending:
-        try:
-            entries = list(os.scandir(pending.pop()))
-        except OSError:
-            continue
-        for entry in entries:
-            try:
-                info = entry.stat(follow_symlinks=False)
-            except OSError:
-                continue
-            if enter(info):
-                pending.append(entry.path)
-            else:
-                yield entry.path, info
-
-
-def _owned_files(uid, gid, places=SHARED_PLACES):
-    """Every path in ``places`` that ``uid`` owns (a folder of its own stands for all it holds),
-    searched wherever that user may enter (it can have written nowhere else there)."""
-    def enter(info):
-        return info.st_uid != uid and stat.S_ISDIR(info.st_mode) and _may_enter(info, uid, gid)
-
-    return [path for path, info in _entries(places, enter) if info.st_uid == uid]
-
-
-def disk_used(uid, gid, places):
-    """The bytes that regular files of ``uid`` hold in ``places``, each file once, searched in every
-    folder there that user may write to (it can have made files nowhere else), with the files its
-    processes deleted but still hold open or mapped."""
-    def enter(info):
-        return stat.S_ISDIR(info.st_mode) and (info.st_uid == uid or info.st_mode & (
-            stat.S_IWGRP if info.st_gid == gid else stat.S_IWOTH))
-
-    paths, seen, total = [path for path, info in _entries(places, enter) if info.st_uid == uid], set(), 0
-    for pid in processes_of(uid):
-        for table in ("fd", "map_files"):
-            try:
-                paths += [f"/proc/{pid}/{table}/{name}" for name in os.listdir(f"/proc/{pid}/{table}")]
-            except OSError:
-                continue
-    for path in paths:
-        held = path.startswith("/proc/")
-        try:
-            info = os.stat(path, follow_symlinks=held)
-        except OSError:
-            continue
-        if stat.S_ISREG(info.st_mode) and (info.st_dev, info.st_ino) not in seen and (
-                not held or info.st_nlink == 0 and info.st_uid == uid):
-            seen.add((info.st_dev, info.st_ino))
-            total += info.st_blocks * 512
-    return total
-
-
-def _owned_ipc(uid):
-    """(ipcrm option, id) of every System V shared-memory segment, semaphore set and message queue
-    that ``uid`` owns or created."""
-    found = []
-    for kind, option in IPC_KINDS:
-        try:
-            with open(f"/proc/sysvipc/{kind}", encoding="ascii") as table:
-                header, *rows = [line.split() for line in table]
-        except OSError:
-            continue
-        for row in rows:
-            fields = dict(zip(header, row))
-            if str(uid) in (fields.get("uid"), fields.get("cuid")):
-                found.append((option, fields[header[1]]))
-    return found
-
-
-def remove_leftovers(uid, gid):
-    """Remove everything user ``uid`` (its processes killed) left where every user may write:
-    its files and folders in SHARED_PLACES, its System V shared memory, semaphores and message
-    queues; True when none is left (else the caller must run nothing more as that user)."""
-    found = _owned_files(uid, gid)
-    for path in found:
-        try:
-            if os.path.isdir(path) and not os.path.islink(path):
-                shutil.rmtree(path)
-            else:
-                os.unlink(path)
-        except FileNotFoundError:
-            pass
-        except OSError:
-            continue
-    ipc = _owned_ipc(uid)
-    if ipc:
-        try:
-            subprocess.run([shutil.which("ipcrm", path="/usr/bin:/bin") or "ipcrm",
-                            *[part for item in ipc for part in item]], capture_output=True, timeout=KILL_SECONDS,
-                           env={"PATH": "/usr/bin:/bin"})
-        except (OSError, subprocess.TimeoutExpired):
-            return False
-    return not (found and _owned_files(uid, gid)) and not _owned_ipc(uid)
-
-
-def open_shared_folders(root="/", places=SHARED_PLACES):
-    """The folders under ``root`` (this file system) that every user may write to, other than the
-    ``places`` that ``remove_leftovers`` empties of a run's files: where a run could leave files
-    for a later one (``close_shared_folders`` takes the write permission away)."""
-    found = []
-    for folder, names, _ in os.walk(root):
-        if folder in ("/proc", "/sys", "/dev") or os.path.ismount(folder) and folder != root:
-            names[:] = []
-            continue
-        for name in names:
-            path = os.path.join(folder, name)
-            try:
-                info = os.lstat(path)
-            except OSError:
-                continue
-            if stat.S_ISDIR(info.st_mode) and info.st_mode & stat.S_IWOTH and path not in places:
-                found.append(path)
-        names[:] = [name for name in names if os.path.join(folder, name) not in places]
-    return found
-
-
 def kill_all_users():
     """Kill every process of every pool user that no run holds (before results are written); True
     when none is left. Each user is taken first, as a run takes it: one that another grader on the
@@ -379,13 +244,8 @@ class RunFolder:
         self.uid, self.gid = self._slot.user.pw_uid, self._slot.user.pw_gid
         self._ended, self._gone = False, True
         try:
-            # what a crashed grader's run may have left (unless this user's last run ended clean: the walk
-            # of the shared places takes 0.1 s where /tmp is big)
-            self._clean = _lock_dir() / f"{self._slot.user.pw_name}.clean"
-            was_clean = self._clean.exists()
-            self._clean.unlink(missing_ok=True)
-            if not (kill_user(self.uid, self.gid) and (was_clean or remove_leftovers(self.uid, self.gid))):
-                raise RuntimeError(f"what {self._slot.user.pw_name} left behind could not be removed")
+            if not kill_user(self.uid, self.gid):  # what a crashed grader's run may have left running
+                raise RuntimeError(f"a process of {self._slot.user.pw_name} could not be killed")
             self.base = Path(tempfile.mkdtemp(prefix="hwgrade-user-"))
             _own(self.base, 0, self.gid, 0o750)
             self.kit = self.base / "kit"
@@ -416,9 +276,9 @@ class RunFolder:
                 str(self.kit)]
 
     def end(self):
-        """Kill every process of the run's user, delete the folder and everything the user left in
-        the shared places (``remove_leftovers``), free the user (once). True when nothing of the
-        user is left (else no run may begin after it: the next run could read what it left)."""
+        """Kill every process of the run's user, delete the folder, free the user (once). True when
+        no process of the user is left (else no run may begin after it). The user made no file
+        anywhere (``confine.py``): there is nothing else of it to look for."""
         if self._ended:
             return self._gone
         self._ended, self._gone = True, False
@@ -426,9 +286,6 @@ class RunFolder:
             self._gone = kill_user(self.uid, self.gid)
             if getattr(self, "base", None) is not None:
                 shutil.rmtree(self.base, ignore_errors=True)
-            self._gone = self._gone and remove_leftovers(self.uid, self.gid)
-            if self._gone and getattr(self, "_clean", None) is not None:
-                self._clean.touch()  # root's own folder: no run can make or remove it
         finally:
             self._slot.release()
         return self._gone
@@ -447,8 +304,9 @@ def probe(python):
     pool = users()
     if not pool:
         return False, "no sandbox users (as root: python -m hwtools.grade.instructor.user_sandbox create; setup.sh does it)"
-    if not shutil.which("setpriv"):
-        return False, "setpriv (util-linux) is missing"
+    for tool in ("setpriv", "prlimit"):  # prlimit: a run's limits (its processes, file size, open files...)
+        if not shutil.which(tool):
+            return False, f"{tool} (util-linux) is missing"
     try:
         check = subprocess.run([SYSTEM_PYTHON, "-I", "-c", "import seccomp; print(seccomp.get_api())"],
                                capture_output=True, text=True, timeout=60, env={})
@@ -562,8 +420,6 @@ def main(argv=None):
                                                 "rm -r FOLDER after)")
     python.add_argument("folder", help="a new folder, in a place the pool's users can reach (not under /root)")
     commands.add_parser("probe", help="say whether runs as a pool user work here")
-    commands.add_parser("close-shared", help="take every user's write permission away from the folders where "
-                                             "a run could leave files that nothing removes (as root; setup.sh)")
     args = parser.parse_args(argv)
     if args.command == "create":
         print("sandbox users:", " ".join(create_users(args.count)))
@@ -574,10 +430,6 @@ def main(argv=None):
         if not works:
             print(f"warning: the pool's users cannot run it ({how}): the folders above it must let them in",
                   file=sys.stderr)
-    elif args.command == "close-shared":
-        for path in open_shared_folders():
-            os.chmod(path, stat.S_IMODE(os.lstat(path).st_mode) & ~stat.S_IWOTH)
-            print("no longer writable by every user:", path)
     else:
         works, how = probe(sys.executable)
         print(("user sandbox: " if works else "no user sandbox: ") + how)
