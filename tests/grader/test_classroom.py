@@ -266,13 +266,12 @@ def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class,
     assert "rejected: a path that leaves the submission" in feedback["traversal"]
     assert "Nothing of this submission was run" in feedback["huge"]
     assert "on a hidden input (hidden inputs are not shown" in feedback["cheat-hardcoded_visible"]
-    case_sets = [grader.cases]  # and each folder submission's own hidden inputs (drawn for its code)
-    for folder in a_class.folder.iterdir():
-        if folder.is_dir() and (folder / "hwlib").is_dir() and not (folder / "hwlib").is_symlink():
-            try:
-                case_sets.append(grader.case_sets(folder))
-            except Exception:  # noqa: BLE001 - one the grader cannot read ran nothing
-                pass
+    case_sets = [grader.cases]  # and each grading's own hidden inputs (drawn from the secret its state keeps)
+    for saved in classroom.state_folder(out / "grades.csv").glob("*.json"):
+        secret = json.loads(saved.read_text(encoding="utf-8"))["secret"]
+        if secret is not None:
+            assert secret not in "".join(feedback.values()) + (out / "grades.csv").read_text(encoding="utf-8")
+            case_sets.append(grader.case_sets(secret))
     assert len(case_sets) > 10
     hidden_inputs = {show(value) for sets in case_sets for todo in checks.GRADED_TODOS for _, _, args in sets[todo].hidden
                      for value in args.values() if isinstance(value, np.ndarray) and np.unique(value).size >= 3}
@@ -321,10 +320,18 @@ def test_a_changed_submission_is_graded_again_and_only_it(a_class, first_run, gr
     target = copy / "correct-folder" / "hwlib" / "logreg.py"
     target.write_text(target.read_text().replace("### END TODO 2.2.1", "# changed after the deadline\n"
                                                  "    ### END TODO 2.2.1", 1))
+    # and one regrade of the same files (as when the grader changed: its saved key is stale)
+    saved = {path.stem: json.loads(path.read_text()) for path in classroom.state_folder(tmp_path / "grades.csv").iterdir()}
+    stale = classroom.state_folder(tmp_path / "grades.csv") / "wrong-forward_difference.json"
+    stale.write_text(json.dumps(saved["wrong-forward_difference"] | {"key": "stale"}))
     report = classroom.grade_class(copy, tmp_path / "grades.csv", tmp_path / "feedback", grader=grader, jobs=JOBS)
-    assert report.graded_now == 1
+    assert report.graded_now == 2
     changed = next(result for result in report.students if result.student == "correct-folder")
     assert not changed.reused and changed.auto_total == AUTO_POINTS
+    now = {path.stem: json.loads(path.read_text()) for path in classroom.state_folder(tmp_path / "grades.csv").iterdir()}
+    assert now["wrong-forward_difference"]["secret"] == saved["wrong-forward_difference"]["secret"], "a regrade: its inputs"
+    assert now["wrong-forward_difference"]["result"] == saved["wrong-forward_difference"]["result"]
+    assert now["correct-folder"]["secret"] != saved["correct-folder"]["secret"], "new files: a new grading's secret"
 
 
 def test_the_saved_results_are_stale_once_any_module_of_the_grader_changes(monkeypatch, tmp_path):
