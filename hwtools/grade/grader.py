@@ -21,7 +21,6 @@ same runs, so the preview gives the instructor's verdict wherever the other TODO
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import hashlib
 import importlib.util
@@ -247,24 +246,23 @@ class Grader:
             read = blocks.Submission(submission, problems={todo: why for todo in TODO_BY_ID})
         if self.reference is not None:  # without a reference the submission's own files are what runs
             result["notes"].extend(read.notes)
-        # A preview runs the student's own code in servers beside its runs: it holds the machine's turn throughout.
-        with self.sandbox.whole_turn() if self.reference is None else contextlib.nullcontext():
-            pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
-            graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
-            budget = Budget(self.budget)
-            try:
-                with ThreadPoolExecutor(max_workers=self.jobs) as executor:
-                    if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
-                        list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
-                    entries = dict(zip(graded, executor.map(
-                        lambda todo: self._todo_entry(todo, read, layout, pool, budget, secret), graded)))
-                for todo in selected:
-                    result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
-                                                                                   self._scrub, self._limits, []))
-                self._blame(result["todos"], read, layout, pool, budget)
-            finally:
-                if pool is not None and pool is not self.pool:
-                    pool.close()
+        # A preview (no hidden input) runs the student's own code in servers beside its runs: it needs no turn.
+        pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
+        graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
+        budget = Budget(self.budget)  # this grading's wall clock, and the turn its runs take
+        try:
+            with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+                if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
+                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
+                entries = dict(zip(graded, executor.map(
+                    lambda todo: self._todo_entry(todo, read, layout, pool, budget, secret), graded)))
+            for todo in selected:
+                result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
+                                                                               self._scrub, self._limits, []))
+            self._blame(result["todos"], read, layout, pool, budget)
+        finally:
+            if pool is not None and pool is not self.pool:
+                pool.close()
         entries = result["todos"]
         result["total"] = {
             "auto_earned": round(sum(entry["auto_earned"] for entry in entries), 2),
