@@ -495,6 +495,23 @@ def test_the_orphans_of_a_user_run_are_reaped_so_its_user_can_fork_again(user, t
     assert not adopted_zombies()
 
 
+def at_once(box, kits_, budgets):
+    """Runs of ``kits_`` started side by side (as a grader's threads start them), each with its grading's
+    budget: their outcomes."""
+    outcomes = [None] * len(kits_)
+
+    def one(index):
+        process = box.start(kits_[index], budget=budgets[index])
+        outcomes[index] = broker.run_cases(process, None, [("c0", "sigmoid", {"z": np.array([0.0])})], [], None)
+
+    threads = [threading.Thread(target=one, args=(index,)) for index in range(len(kits_))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=120)
+    return outcomes
+
+
 @pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
 def test_two_runs_of_one_grading_never_overlap(mode, request, tmp_path):
     """A grading's runs, started side by side (as a grader's threads start them), take its turn: the
@@ -511,18 +528,7 @@ def test_two_runs_of_one_grading_never_overlap(mode, request, tmp_path):
         time.sleep(1.0)
         values = np.array([started, time.time()])
     """)) for name in ("a", "b")]
-    outcomes = [None, None]
-
-    def a_run(index):
-        process = box.start(two[index], budget=grading)
-        outcomes[index] = broker.run_cases(process, None, [("c0", "sigmoid", {"z": np.array([0.0])})], [], None)
-
-    threads = [threading.Thread(target=a_run, args=(index,)) for index in range(2)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join(timeout=120)
-    (a_start, a_end), (b_start, b_end) = (values(outcome).tolist() for outcome in outcomes)
+    (a_start, a_end), (b_start, b_end) = (values(outcome).tolist() for outcome in at_once(box, two, [grading] * 2))
     assert a_end <= b_start or b_end <= a_start, "two runs of one grading overlapped"
 
 
@@ -543,17 +549,7 @@ def test_the_runs_of_two_gradings_run_side_by_side(plain, tmp_path):
         time.sleep(0.2)
         os.unlink(mine)
     """)) for name in ("a", "b")]
-    outcomes = [None, None]
-
-    def a_run(index):  # each grading's own turn
-        process = plain.start(two[index], budget=sandbox.Budget(600))
-        outcomes[index] = broker.run_cases(process, None, [("c0", "sigmoid", {"z": np.array([0.0])})], [], None)
-
-    threads = [threading.Thread(target=a_run, args=(index,)) for index in range(2)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join(timeout=120)
+    outcomes = at_once(plain, two, [sandbox.Budget(600), sandbox.Budget(600)])  # each grading's own turn
     assert [values(outcome).tolist() for outcome in outcomes] == [[1.0], [1.0]], "a grading waited for another"
 
 
