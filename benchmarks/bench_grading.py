@@ -30,8 +30,9 @@ reference and hidden checks in ``source/``, the submission, ``results/``) graded
 ``gradescope_autograder`` in a process started inside a control group of 0.5 CPU
 (``cpu.cfs_quota_us`` 50,000 of every 100,000) and 768 MiB of memory (``memory.limit_in_bytes``,
 which counts every process of the grading, its sandboxed runs and reference servers included, and
-the page cache it brings in); the seconds from start to results.json and the group's peak
-(``memory.max_usage_in_bytes``).
+the page cache it brings in); the seconds from start to results.json, the group's peak
+(``memory.max_usage_in_bytes``) and the CPU seconds it used (a cpuacct group), which on a loaded
+machine say what a quiet half CPU would take.
 
 ``--bound SECONDS`` measures what one submission can cost: every TODO an endless loop, graded with
 that time limit (by this kit, and by the baseline's when given), after the reference's answers.
@@ -216,7 +217,7 @@ def gradescope(kit, count, isolation, python):
     from hwtools.grade.kits import write_submission  # noqa: PLC0415
 
     layout, name = blocks.load_layout(kit), f"hwgrade-bench-{uuid.uuid4().hex[:8]}"
-    cpu, memory = Path("/sys/fs/cgroup/cpu") / name, Path("/sys/fs/cgroup/memory") / name
+    cpu, memory, used = Path("/sys/fs/cgroup/cpu") / name, Path("/sys/fs/cgroup/memory") / name, CPUACCT / name
     reference = private_reference(kit)
     for _ in range(count):
         with tempfile.TemporaryDirectory(prefix="bench-gradescope-") as folder:
@@ -224,14 +225,14 @@ def gradescope(kit, count, isolation, python):
             shutil.copytree(reference, root / "source")
             (root / "results").mkdir()
             fresh_submissions(write_submission, layout, folder, 1, "gs")[0].rename(root / "submission")
-            cpu.mkdir()
-            memory.mkdir()
+            for group in (cpu, memory, used):
+                group.mkdir()
             try:
                 (cpu / "cpu.cfs_period_us").write_text("100000")
                 (cpu / "cpu.cfs_quota_us").write_text(str(int(GRADESCOPE_CPU * 100000)))
                 (memory / "memory.limit_in_bytes").write_text(str(GRADESCOPE_MEMORY))
-                join = 'echo $$ > "$1"; echo $$ > "$2"; shift 2; exec "$@"'
-                command = ["/bin/sh", "-c", join, "join", str(cpu / "cgroup.procs"), str(memory / "cgroup.procs"),
+                join = 'echo $$ > "$1"; echo $$ > "$2"; echo $$ > "$3"; shift 3; exec "$@"'
+                command = ["/bin/sh", "-c", join, "join", *(str(group / "cgroup.procs") for group in (cpu, memory, used)),
                            sys.executable, "-c", AUTOGRADE, str(root), isolation, python]
                 started = time.perf_counter()
                 run = subprocess.run(command, cwd=kit, env=dict(os.environ, PYTHONPATH=str(kit)), capture_output=True,
@@ -239,14 +240,15 @@ def gradescope(kit, count, isolation, python):
                 seconds = time.perf_counter() - started
                 peak = int((memory / "memory.max_usage_in_bytes").read_text()) / 2**20
                 killed = (memory / "memory.failcnt").read_text().strip()
+                seconds_cpu = int((used / "cpuacct.usage").read_text()) / 1e9
             finally:
-                for group in (cpu, memory):
+                for group in (cpu, memory, used):
                     group.rmdir()
             data = json.loads((root / "results" / "results.json").read_text())
             assert run.returncode == 0 and data["score"] == 39, (run.returncode, data.get("score"), run.stderr[-2000:])
             print(f"gradescope {data['extra_data']['sandbox']:<6} {GRADESCOPE_CPU:g} CPU, "
-                  f"{GRADESCOPE_MEMORY // 2**20} MiB: {seconds:6.1f} s, peak {peak:5.0f} MiB (limit hit {killed} times)",
-                  flush=True)
+                  f"{GRADESCOPE_MEMORY // 2**20} MiB: {seconds:6.1f} s, peak {peak:5.0f} MiB (limit hit {killed} times); "
+                  f"{seconds_cpu:.1f} CPU seconds, so {seconds_cpu / GRADESCOPE_CPU:.1f} s on a quiet half CPU", flush=True)
     shutil.rmtree(reference)
 
 
