@@ -1,5 +1,6 @@
 """Shared test setup: a non-interactive matplotlib backend for every test and notebook kernel, and
-failure reports that name the TODO (``hwtools/pytest_todo.py``)."""
+failure reports that name the TODO (``hwtools/pytest_todo.py``), and a test that runs over its time limit
+failing alone on Windows too (``hwtools/pytest_overrun.py``)."""
 
 import os
 
@@ -7,7 +8,7 @@ import pytest
 
 os.environ["MPLBACKEND"] = "Agg"
 
-pytest_plugins = ("hwtools.pytest_todo",)
+pytest_plugins = ("hwtools.pytest_todo", "hwtools.pytest_overrun")
 
 # The tests that run student code (graders, sandboxes, class runs). Under the README's test command
 # (-n 2 --dist loadfile) one process runs these files, starting with them, and the other everything

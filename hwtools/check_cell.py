@@ -32,10 +32,11 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import textwrap
+import time
 from pathlib import Path
 
+from hwtools.files import scratch_folder
 from hwtools.grade.feedback import FAILURE_FIELDS, field_lines
 from hwtools.grade.in_sandbox.probes import IMPORT_FAILED
 from hwtools.grade.judging import visible_view
@@ -45,6 +46,8 @@ from hwtools.todos import TODO_BY_ID
 
 WIDTH = 100  # characters per printed line
 TIMEOUT = 1800.0  # seconds for one check in all; the grader's own limit (60 s per run) applies inside
+POLL_SECONDS = 0.05  # the longest wait an interrupt may have to end
+STOP_SECONDS = 0.5  # for the grader to end its runs when told to stop, before it is killed
 
 
 class CheckError(RuntimeError):
@@ -57,23 +60,16 @@ class CheckError(RuntimeError):
 def grade_todo(todo, kit=KIT_ROOT, python=None, timeout=TIMEOUT):
     """The grader's result entry for TODO ``todo`` of the kit at ``kit`` (see ``hwtools.grade``),
     from ``python -m hwtools.grade KIT --todo TODO --json FILE`` run in a subprocess. An interrupt
-    ends that subprocess at once."""
+    (Kernel > Interrupt, Ctrl+C) ends that subprocess and its children at once."""
     if todo not in TODO_BY_ID:
         raise CheckError(f"{todo!r} is not a TODO of the handout; they are {', '.join(TODO_BY_ID)}")
     kit = Path(kit).resolve()
-    with tempfile.TemporaryDirectory(prefix="hwcheck-") as scratch:
-        out = Path(scratch) / "result.json"
+    with scratch_folder("hwcheck-") as scratch:
+        out = scratch / "result.json"
         command = [python or sys.executable, "-m", "hwtools.grade", str(kit), "--todo", todo, "--json", str(out), "--brief"]
-        env = {**os.environ, "MPLBACKEND": "Agg"}
-        process = subprocess.Popen(command, cwd=kit, env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                   stderr=subprocess.PIPE, text=True, start_new_session=True)
-        try:
-            _, stderr = process.communicate(timeout=timeout)
-        except BaseException:  # KeyboardInterrupt (Kernel > Interrupt), a timeout: end the grader now
-            _kill(process)
-            raise
-        if process.returncode != 0 or not out.is_file():
-            last = [line for line in (stderr or "").strip().splitlines() if line.strip()][-1:] or [f"exit code {process.returncode}"]
+        code, _, stderr = run_polled(command, kit, scratch, timeout)
+        if code != 0 or not out.is_file():
+            last = [line for line in stderr.strip().splitlines() if line.strip()][-1:] or [f"exit code {code}"]
             raise CheckError(f"python -m hwtools.grade --todo {todo}: {last[0].removeprefix('error: ')}")
         result = json.loads(out.read_text(encoding="utf-8"))
     entries = [entry for entry in result["todos"] if entry["id"] == todo]
@@ -82,9 +78,44 @@ def grade_todo(todo, kit=KIT_ROOT, python=None, timeout=TIMEOUT):
     return entries[0]
 
 
+def child_env(**extra):
+    """The environment of a Python the kit starts: this one's, with UTF-8 mode on (PEP 540), so that its
+    pipes, its files and what it prints are UTF-8 whatever the system's code page (Windows' cp1252, cp936)."""
+    return {**os.environ, "PYTHONUTF8": "1", "PYTHONIOENCODING": "utf-8", **extra}
+
+
+def run_polled(command, cwd, scratch, timeout):
+    """Run ``command`` in ``cwd`` with its output in files of the folder ``scratch`` (no pipe to fill or to
+    decode), waiting in short steps, so that an interrupt (Windows wakes no long wait: cpython gh-74157)
+    ends it and every process it started within a second; (exit code, its output, its error stream), as text."""
+    with open(scratch / "stdout", "w+b") as stdout, open(scratch / "stderr", "w+b") as stderr:
+        process = subprocess.Popen(command, cwd=cwd, env=child_env(MPLBACKEND="Agg"), stdin=subprocess.DEVNULL,
+                                   stdout=stdout, stderr=stderr, start_new_session=True)
+        ends = time.monotonic() + timeout
+        try:
+            while process.poll() is None:
+                if time.monotonic() > ends:
+                    raise CheckError(f"it took more than {timeout:.0f} s and was stopped")
+                time.sleep(POLL_SECONDS)
+        except BaseException:  # KeyboardInterrupt (Kernel > Interrupt), the time-out: end the grader now
+            _kill(process)
+            raise
+        stdout.seek(0)
+        stderr.seek(0)
+        return process.returncode, stdout.read().decode("utf-8", "replace"), stderr.read().decode("utf-8", "replace")
+
+
 def _kill(process):
+    """End the grader and every process it started: on macOS and Linux it ends its runs itself when told
+    (SIGTERM; each run has a session of its own), then its own session goes; on Windows its tree goes."""
+    if hasattr(os, "killpg"):
+        process.terminate()
+        ends = time.monotonic() + STOP_SECONDS
+        while process.poll() is None and time.monotonic() < ends:
+            time.sleep(POLL_SECONDS)
     kill_tree(process)
-    process.wait()
+    while process.poll() is None:
+        time.sleep(POLL_SECONDS)
 
 
 def _visible_failure(entry, check):

@@ -17,12 +17,16 @@ Then it writes into ``handin/`` (next to the kit's ``hwlib/`` unless ``--out`` s
   saved), for Canvas. No time stamps: the same files give the same bytes. What editors and Jupyter
   leave beside your files (``.ipynb_checkpoints/``, ``*~``, ``.swp``; ``markers.is_leftover``) is
   left out, as every reader of the kit leaves it out.
-* ``ANDREW_ID.pdf``: the report (``python -m hwtools.report``, which runs both notebooks from a fresh
-  kernel), for Gradescope; the whole report, its figures and the LaTeX source ``answers.tex`` where
-  the report writes it, are in ``handin/report/``. It is built beside the previous report, which it
-  replaces only once complete (and says so); a report that fails leaves the previous one as it was.
-  Without a Chrome, Edge or Chromium there is no PDF: the rest of the report is put in place all the
-  same, and it says how to make the PDF.
+* ``ANDREW_ID.pdf``: the PDF to upload to Gradescope. First the report (``python -m hwtools.report``,
+  which runs both notebooks from a fresh kernel); its files, and the LaTeX source ``answers.tex`` for
+  your words, are in ``handin/report/``. Once you have written your words in ``handin/report/answers.tex``
+  and compiled it there (``pdflatex answers.tex``, which writes ``handin/report/answers.pdf``), the next
+  hand-in copies that PDF here (``upload_pdf``), or says it is older than your ``answers.tex``.
+  A new report is built beside the previous one and replaces it only once complete, your words carried
+  into its ``answers.tex`` and every file of yours kept (``report/words.py``); where a file of the old
+  report is held open (a PDF viewer on Windows), the old one is kept whole and it says which file.
+  Without a Chrome, Edge or Chromium there is no report PDF: the rest is put in place all the same, and
+  it says how to make the PDF.
 
 Each step says how long it took; at the end, the whole hand-in's time.
 """
@@ -34,15 +38,14 @@ import io
 import os
 import re
 import shutil
-import subprocess
 import sys
-import tempfile
 import time
 import zipfile
 from pathlib import Path
 
 from hwtools import markers
-from hwtools.check_cell import CheckError, check_lines, grade_todo
+from hwtools.check_cell import CheckError, check_lines, grade_todo, run_polled
+from hwtools.files import held_open, held_words, printable_output, remove_quietly, replace_bytes, retrying, scratch_folder
 from hwtools.grade.judging import visible_view
 from hwtools.not_done import KIT_ROOT
 
@@ -52,6 +55,7 @@ TRAINING = "1.3.3"  # the TODO whose check trains with the student's LEARNING_RA
 # What the report costs, said before it starts (the real time is said after): benchmarks/bench_dayone.py --done,
 # 2026-12-02, 2 cores at load 3-7: 1 min 32 s to 2 min 18 s.
 REPORT_TIME = "1.5 to 2.5 minutes on 2 cores with other programs running"
+REPORT_SECONDS = 3600.0  # the report's own cells have their limits (CELL_TIMEOUT); this bounds the whole
 
 
 class HandinError(Exception):
@@ -116,8 +120,8 @@ def checked_zip(kit, andrew_id):
     else HandinError. Nothing is written but a temporary copy, deleted at once."""
     names = code_files(kit)
     data = zip_bytes(kit, names)
-    with tempfile.TemporaryDirectory(prefix="hwhandin-") as scratch:
-        trial = Path(scratch) / f"{andrew_id}.zip"
+    with scratch_folder("hwhandin-") as scratch:
+        trial = scratch / f"{andrew_id}.zip"
         trial.write_bytes(data)
         problems, taken = read_back(trial, kit)
     if problems:
@@ -160,11 +164,15 @@ def visible_checks(kit, say=print):
 
 def build_report(kit, out_dir, name):
     """Run the report (a subprocess, as a student would) into ``out_dir``; its PDF (None where no browser printed
-    it: the rest of the report is written), or HandinError."""
+    it: the rest of the report is written), or HandinError. Its pipes carry UTF-8, and an interrupt ends it."""
     command = [sys.executable, "-m", "hwtools.report", str(out_dir), "--name", name]
-    done = subprocess.run(command, cwd=kit, capture_output=True, text=True)
-    if done.returncode != 0:
-        lines = [line for line in (done.stderr + done.stdout).splitlines() if line.strip()]
+    with scratch_folder("hwhandin-") as scratch:
+        try:
+            code, stdout, stderr = run_polled(command, kit, scratch, REPORT_SECONDS)
+        except CheckError as error:  # it ran over its time
+            raise HandinError(f"the report could not be built (python -m hwtools.report): {error}") from None
+    if code != 0:
+        lines = [line for line in (stderr + stdout).splitlines() if line.strip()]
         why = next((line for line in lines if "not done yet" in line), None) or "\n".join(lines[-12:])
         raise HandinError(f"the report could not be built (python -m hwtools.report):\n{why}")
     pdf = Path(out_dir) / "answers.pdf"
@@ -187,28 +195,114 @@ def _written(path):
 
 
 def write_report(kit, out_dir, andrew_id, name, say=print):
-    """Build the report beside ``out_dir/report`` and put it in place once complete; the PDF's path (None, and a
-    previous PDF removed, where the report has none)."""
+    """Build the report beside ``out_dir/report`` and put it in place once complete, the student's words and
+    files kept (``_keep_students``); the report's PDF becomes ``out_dir/ANDREW_ID.pdf``. Either both are
+    replaced or neither: where a file of the old ones is held open (Windows), the old ones are kept whole and
+    HandinError names that file. Returns the PDF's path (None, and a previous PDF removed, without one)."""
     report_dir, target = out_dir / "report", out_dir / f"{andrew_id}.pdf"
     building = out_dir / f".report-building-{os.getpid()}"
-    shutil.rmtree(building, ignore_errors=True)
+    remove_quietly(building)
     try:
         pdf = build_report(kit, building, f"{name} / {andrew_id}" if name else andrew_id)
+        if pdf is not None:  # report/ keeps no answers.pdf of its own: one there is the student's, from answers.tex
+            pdf = retrying(pdf.rename, out_dir / f".{andrew_id}.pdf.new-{os.getpid()}")
+        if report_dir.is_dir():
+            _keep_students(report_dir, building, say)
     except BaseException as error:
-        shutil.rmtree(building, ignore_errors=True)
+        remove_quietly(building)
         if isinstance(error, HandinError) and report_dir.exists():
             raise HandinError(f"{error}\nYour previous report in {report_dir} (written {_written(report_dir)}) is "
                               "kept as it was.") from None
         raise
     if report_dir.exists():
         say(f"  it replaces the previous report in {report_dir} (written {_written(report_dir)})")
-        shutil.rmtree(report_dir)
-    building.rename(report_dir)
-    if pdf is None:
-        target.unlink(missing_ok=True)
-        return None
-    shutil.copyfile(report_dir / pdf.name, target)
-    return target
+    _swap(report_dir, building, target, pdf, say)
+    return target if pdf is not None else None
+
+
+def _keep_students(report_dir, building, say):
+    """Carry into the new report in ``building`` what the student wrote in the old one: their words in
+    answers.tex (``words.write_answers``) and every file of theirs the report does not write (a figure of their
+    own, the answers.pdf pdflatex made, answers.new.tex)."""
+    from hwtools.report.words import AS_WRITTEN, write_answers  # noqa: PLC0415 - standard library only
+
+    note = write_answers(building, (building / AS_WRITTEN).read_text(encoding="utf-8"), words_from=report_dir)
+    if note:
+        say(f"  {note}")
+    for path in sorted(report_dir.rglob("*")):
+        relative = path.relative_to(report_dir)
+        kept = building / relative
+        if path.is_file() and not kept.exists() and not any(part.startswith(".") for part in relative.parts):
+            kept.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(path, kept)
+
+
+def _swap(report_dir, building, target, pdf, say):
+    """Put the folder ``building`` in place of ``report_dir`` and the file ``pdf`` (None: none) in place of
+    ``target``, both or neither (the old ones kept whole, and HandinError naming the file held open)."""
+    old = report_dir.with_name(f".report-old-{os.getpid()}")
+    undo = []
+    try:
+        if report_dir.exists():
+            _move(report_dir, old, report_dir)
+            undo.append((old, report_dir))
+        _move(building, report_dir, report_dir)
+        undo.append((report_dir, building))
+        if pdf is not None:
+            _move(pdf, target, target)
+        elif target.exists():
+            retrying(target.unlink)
+    except (HandinError, OSError) as error:
+        for moved, back in reversed(undo):
+            retrying(os.rename, moved, back)
+        remove_quietly(building)
+        if pdf is not None:
+            remove_quietly(pdf)
+        why = error if isinstance(error, HandinError) else held_words(target)
+        raise HandinError(f"{why}. The new report is not written; your previous report"
+                          + (f" ({report_dir}, {target.name})" if report_dir.exists() else "") + " is kept whole.") from None
+    if not remove_quietly(old):
+        held = held_open(old)
+        say(f"  the previous report stays in {old}: " + (held_words(held) if held else "it could not be removed")
+            + " (then remove that folder)")
+
+
+def _move(source, destination, shown):
+    """``os.replace`` retried briefly; where something stays held, HandinError naming the file."""
+    try:
+        retrying(os.replace, source, destination)
+    except PermissionError:
+        held = held_open(shown) if shown.exists() else None
+        raise HandinError(held_words(held or shown)) from None
+
+
+def _shown(path, kit):
+    """``path`` as the student finds it: from the kit's folder, where they run this, if it is in it."""
+    return path.relative_to(kit).as_posix() if path.is_relative_to(kit) else str(path)
+
+
+def upload_pdf(out_dir, andrew_id, say=print):
+    """The PDF to upload, ``out_dir/ANDREW_ID.pdf``, made the student's where their answers.tex has words of theirs
+    and they compiled it since (``report/answers.pdf``, newer than ``report/answers.tex``); None, said, where their
+    words are in no PDF yet. The report's own PDF otherwise."""
+    from hwtools.report.words import has_words  # noqa: PLC0415
+
+    report_dir, target = out_dir / "report", out_dir / f"{andrew_id}.pdf"
+    tex, own = report_dir / "answers.tex", report_dir / "answers.pdf"
+    if not has_words(report_dir):
+        return target if target.is_file() else None
+    if own.is_file() and own.stat().st_mtime >= tex.stat().st_mtime:
+        if not target.is_file() or target.read_bytes() != own.read_bytes():
+            try:
+                replace_bytes(target, own.read_bytes())
+            except PermissionError as error:
+                raise HandinError(f"{error} (your compiled report {own} is not copied)") from None
+            say(f"{target}: your compiled answers.tex, with your words (a copy of {own})")
+        return target
+    say(f"your words in {tex} are in no PDF yet: {own.name} there is "
+        + ("older than your answers.tex" if own.is_file() else "not made yet")
+        + f": compile it (in {report_dir}: pdflatex answers.tex, twice; or on Overleaf, into {own}) and run this again")
+    return None
 
 
 def handin(andrew_id, kit=KIT_ROOT, out_dir=None, name=None, report=True, say=print):
@@ -230,20 +324,29 @@ def handin(andrew_id, kit=KIT_ROOT, out_dir=None, name=None, report=True, say=pr
            "visible checks; you may still hand in, and fix and hand in again before the deadline."
            if failing else "every visible check passes."))
     out_dir.mkdir(parents=True, exist_ok=True)
+    for place in (zip_path, out_dir / f"{andrew_id}.pdf", out_dir / "report"):  # before minutes of the report
+        held = held_open(place)
+        if held is not None:
+            raise HandinError(f"{held_words(held)} (nothing was written)")
     replaced = zip_path.is_file() and zip_path.read_bytes() != data
-    zip_path.write_bytes(data)
+    try:
+        replace_bytes(zip_path, data)
+    except PermissionError as error:
+        raise HandinError(f"{error} (the zip is not written; the earlier one is kept)") from None
     say(f"{zip_path}: {len(data) / 1e6:.2f} MB" + (f" (it replaces the earlier {zip_path.name}, of other files)" if replaced else ""))
     result = {"zip": zip_path, "pdf": None, "failing": failing}
     if report:
         step = time.monotonic()
         say(f"building the report: both notebooks run from a fresh kernel, then the PDF is printed ({REPORT_TIME}) ...")
-        result["pdf"] = write_report(kit, out_dir, andrew_id, name, say)
-        say(f"{result['pdf']}: the report ({minutes(time.monotonic() - step)}; all its files, the LaTeX source "
-            f"included where written, are in {out_dir / 'report'})" if result["pdf"] else
+        pdf = write_report(kit, out_dir, andrew_id, name, say)
+        say(f"{pdf}: the report ({minutes(time.monotonic() - step)}; all its files, answers.tex for your words "
+            f"included, are in {out_dir / 'report'})" if pdf else
             f"{out_dir / 'report'}: the report without its PDF ({minutes(time.monotonic() - step)}): {_no_browser()}")
+    result["pdf"] = upload_pdf(out_dir, andrew_id, say)
     say("")
-    say(f"Hand in {zip_path.name} on Canvas" + (f" and {andrew_id}.pdf on Gradescope." if result["pdf"] else
-                                                 " and the report's PDF on Gradescope." if report else ".")
+    say(f"Hand in {_shown(zip_path, kit)} on Canvas" + (f" and {_shown(result['pdf'], kit)} on Gradescope." if result["pdf"] else
+                                            " and, once made, the report's PDF on Gradescope (see above)." if report or
+                                            (out_dir / "report").is_dir() else ".")
         + f" (hand-in took {minutes(time.monotonic() - started)})")
     return result
 
@@ -257,6 +360,7 @@ def main(argv=None):
     parser.add_argument("--out", metavar="FOLDER", help="where to write them (default: handin/ in the kit)")
     parser.add_argument("--no-report", action="store_true", help="only the zip, without running the notebooks")
     args = parser.parse_args(argv)
+    printable_output()
     try:
         handin(args.andrew_id, out_dir=args.out, name=args.name, report=not args.no_report)
     except HandinError as error:

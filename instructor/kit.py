@@ -36,6 +36,7 @@ INSTRUCTOR_ONLY = (
     "benchmarks/bench_grading.py",  # it grades against the reference solution
     "benchmarks/bench_classroom.py",
     "benchmarks/bench_dayone.py",  # it builds a student edition with the solutions kept
+    "benchmarks/bench_similarity.py",  # the similarity report's: instructor-only, like the report itself
 )
 
 # Only the homework holds solution blocks; tooling elsewhere (the grader) may talk about markers freely.

@@ -6,14 +6,17 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import signal
 import sys
 from pathlib import Path
 
+from hwtools.files import printable_output
 from hwtools.grade.feedback import render
 from hwtools.grade.grader import (ANSWER_KEY, BUDGET_FACTOR, KIT_ROOT, SECRET_BYTES, Grader, GradingError, has_solutions,
                                   is_secret)
 from hwtools.grade.blocks import load_layout
-from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, limit_own_memory
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, end_every_run, limit_own_memory
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.todos import TODO_BY_ID
 
@@ -29,6 +32,15 @@ def main(argv=None):
                              "(one folder or .zip per student, named by student id) with --gradebook and --feedback")
     parser.add_argument("--gradebook", metavar="FILE.csv", help="a class: write the gradebook here (one row per student)")
     parser.add_argument("--feedback", metavar="FOLDER", help="a class: write one Markdown feedback file per student here")
+    parser.add_argument("--roster", metavar="CANVAS.csv",
+                        help="a class: Canvas's own gradebook export (Grades > Export); the Canvas import beside the "
+                             "gradebook then has a row per student on it, matched by Canvas's ID")
+    parser.add_argument("--similarity", metavar="FOLDER",
+                        help="a class: compare the submissions' TODO blocks pair by pair, offline, and write "
+                             "FOLDER/similarity.csv and FOLDER/similarity.html (with or without grading them)")
+    parser.add_argument("--assignment", metavar="'TITLE (ID)'",
+                        help="a class: the Canvas assignment to fill (its title or id in the roster, or 'Title (id)'; "
+                             "default: the roster's only assignment)")
     parser.add_argument("--reference", metavar="KIT_DIR",
                         help="the instructor's kit to grade against (default: this kit if it holds the solutions, "
                              "else the student edition's answer key: visible checks only)")
@@ -55,6 +67,8 @@ def main(argv=None):
                              "by default each grading draws new hidden inputs")
     parser.add_argument("--brief", action="store_true", help="only the table, without the checks of each TODO")
     args = parser.parse_args(argv)
+    printable_output()
+    signal.signal(signal.SIGTERM, _stop)  # the check cell's interrupt: every run ends with this process
     limit_own_memory()  # the trusted side too: nothing a worker sends can take it past this
     unknown = [todo for todo in args.todo or () if todo not in TODO_BY_ID]
     if unknown:
@@ -68,11 +82,19 @@ def main(argv=None):
             except ImportError:
                 parser.error(f"{submission}: a folder of submissions is graded with the instructor's kit; this one "
                              "(the student edition) grades one kit or one zip")
-            return classroom.main(args, parser)
+            if not args.similarity:
+                return classroom.main(args, parser)
+            try:
+                from hwtools.grade.instructor import similarity  # noqa: PLC0415 - it needs copydetect
+            except ImportError as error:
+                parser.error(f"--similarity needs the instructor's requirements ({error}): "
+                             ".venv/bin/pip install -r requirements.txt")
+            return similarity.main(args, parser)
         parser.error(f"{submission}: neither a kit's folder (with hwlib/), nor a .zip, nor a folder of submissions")
-    if args.gradebook or args.feedback:
+    if args.gradebook or args.feedback or args.roster or args.assignment or args.similarity:
         what = "one student's zip" if one_zip else "a kit (it has hwlib/)"
-        parser.error(f"{submission} is {what}; --gradebook and --feedback are for a folder of submissions")
+        parser.error(f"{submission} is {what}; --gradebook, --feedback, --roster, --assignment and --similarity are "
+                     "for a folder of submissions")
     reference = args.reference
     if reference is None and args.answer_key is None and has_solutions(KIT_ROOT):
         reference = KIT_ROOT
@@ -94,6 +116,11 @@ def main(argv=None):
     if args.json:
         Path(args.json).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
     return 0
+
+
+def _stop(signum, _frame):
+    end_every_run()
+    os._exit(128 + signum)
 
 
 def grade_zip(grader, path, todos=None, secret=None):

@@ -14,6 +14,7 @@ Standard library only: the grader's trusted process imports this module, never `
 from __future__ import annotations
 
 import ast
+import functools
 import os
 import stat
 import threading
@@ -159,6 +160,7 @@ def read_submission(root, layout):
 # --------------------------------------------------------------------------------------------
 
 
+@functools.lru_cache(maxsize=32)  # the reference's files are compared with every submission's
 def skeleton(text):
     """The lines outside the blocks (markers reduced to the TODO id), to compare two editions."""
     lines = markers.split_lines(text)

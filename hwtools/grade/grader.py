@@ -442,7 +442,7 @@ class Grader:
 
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
         """One run of ``todo``'s kit ``files`` on those cases, in its grading's turn (``budget``)."""
-        with tempfile.TemporaryDirectory(prefix="hwgrade-kit-") as scratch:
+        with tempfile.TemporaryDirectory(prefix="hwgrade-kit-", ignore_cleanup_errors=True) as scratch:
             kit = kits.write_files(files, Path(scratch) / "kit")
             try:
                 return broker.run_cases(self.sandbox.start(kit, budget=budget), todo, visible, hidden, pool)
@@ -514,7 +514,7 @@ class Grader:
         visible = checks.CaseSet(todo, visible=self.cases[todo].visible)
 
         def signature(solution):
-            with tempfile.TemporaryDirectory(prefix="hwgrade-mistake-") as scratch:
+            with tempfile.TemporaryDirectory(prefix="hwgrade-mistake-", ignore_cleanup_errors=True) as scratch:
                 kits.write_submission(self.layout, scratch, {todo: list(solution.bodies)}, others="stub")
                 read = blocks.read_submission(Path(scratch), self.layout)
             files = self._composite(todo, read, self.layout)

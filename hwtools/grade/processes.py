@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import os
 import queue
+import shutil
 import signal
 import struct
 import subprocess
@@ -35,7 +36,7 @@ def kill_tree(process):
     try:
         if hasattr(os, "killpg"):
             os.killpg(process.pid, signal.SIGKILL)
-        elif os.name == "nt":
+        elif shutil.which("taskkill"):  # Windows
             subprocess.run(["taskkill", "/F", "/T", "/PID", str(process.pid)], capture_output=True,
                            timeout=KILL_SECONDS, check=False)
     except (ProcessLookupError, PermissionError, OSError, subprocess.TimeoutExpired):

@@ -75,10 +75,10 @@ import tempfile
 import threading
 import time
 import uuid
-from contextlib import contextmanager
 from pathlib import Path
 
 from hwtools.grade.in_sandbox.channel import ChannelTimeout
+from hwtools.grade.in_sandbox.worker import set_limit
 from hwtools.grade.kits import WORKER, worker_env
 from hwtools.grade.processes import Pipes, kill_tree
 
@@ -110,6 +110,15 @@ BUDGET_WORDS = "the submission's time budget was used up"
 
 
 _SURVIVORS = []  # set when a run's processes could not be killed: no run of student code begins after it
+_LIVE = set()  # the runs of this process whose processes may be alive (end_every_run)
+
+
+def end_every_run():
+    """Kill every run this process started and has not ended, with all its processes (each in a session of its
+    own, so the end of this process's own group misses them): for a grader told to stop (SIGTERM, the check
+    cell's interrupt on macOS and Linux; on Windows the end of its process tree takes them)."""
+    for worker in list(_LIVE):
+        kill_tree(worker.process)
 
 
 class Budget:
@@ -137,16 +146,9 @@ def wall_limit(time_limit):
 
 def limit_own_memory(limit=GRADER_MEMORY_LIMIT):
     """Put this (the trusted) process under an address-space limit of ``limit`` bytes, unless a
-    lower one is already set; returns the limit in force (None on Windows, which has no such limit)."""
-    if resource is None:
-        return None
-    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
-    if hard != resource.RLIM_INFINITY:
-        limit = min(limit, hard)
-    if soft == resource.RLIM_INFINITY or soft > limit:
-        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
-        soft = limit
-    return soft
+    lower one is already set; returns the limit in force (None where the system has or takes no such
+    limit: Windows, and macOS, which refuses a finite one: ``set_limit``)."""
+    return set_limit("RLIMIT_AS", limit, hard=False)
 
 
 class Sandbox:
@@ -246,7 +248,7 @@ class WorkerProcess:
         self.started = time.monotonic()
         self.deadline = self.started + wall_limit(time_limit)
         self.begun = self._holding = self._budget_bound = self._killed = False
-        self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-")
+        self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-", ignore_cleanup_errors=True)
         self._token = uuid.uuid4().hex
         self._run_folder = self._init = self.group = None
         self.memory_peak = None  # bytes the whole run held at most, where it ran in a cgroup
@@ -286,6 +288,7 @@ class WorkerProcess:
             finally:
                 for fd in fds:
                     os.close(fd)
+            _LIVE.add(self)
             self._pipes = Pipes(self.process.stdin, self.process.stdout)  # every read and write has a deadline
             if self._run_folder is not None:
                 self._watcher = threading.Thread(target=self._watch_disk, daemon=True)
@@ -410,6 +413,7 @@ class WorkerProcess:
                 stream.close()
             self._scratch.cleanup()
         finally:
+            _LIVE.discard(self)
             budget = self.budget
             if self.begun and budget is not None:
                 budget.spend(time.monotonic() - self.started)

@@ -16,11 +16,13 @@ import os
 import re
 import shutil
 import sys
-import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from urllib.parse import unquote, urlparse
+from urllib.parse import urlparse
+from urllib.request import url2pathname
+
+from hwtools.files import scratch_folder
 
 # The browser, started the way a closed network needs (no background traffic).
 CHROMIUM_ARGS = [
@@ -53,13 +55,17 @@ FONT_TYPES = {"woff": "font/woff", "woff2": "font/woff2", "otf": "font/otf", "tt
 
 # The browsers that print the PDF, where each system installs them, tried in the order of browser_candidates():
 # macOS's apps below /Applications and ~/Applications, Windows's programs below the folders these variables name,
-# Linux's names on PATH, then in /usr/bin.
+# Linux's names on PATH, then in the folders of Debian's and Ubuntu's packages and snaps, then Google's and
+# Microsoft's own packages' folders.
 MAC_APPS = ("Google Chrome.app/Contents/MacOS/Google Chrome", "Chromium.app/Contents/MacOS/Chromium",
             "Microsoft Edge.app/Contents/MacOS/Microsoft Edge")
 WINDOWS_FOLDERS = ("PROGRAMFILES", "PROGRAMFILES(X86)", "LOCALAPPDATA")
 WINDOWS_PROGRAMS = ("Google/Chrome/Application/chrome.exe", "Microsoft/Edge/Application/msedge.exe",
                     "Chromium/Application/chrome.exe")
-LINUX_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "microsoft-edge")
+LINUX_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable", "microsoft-edge",
+               "microsoft-edge-stable")
+LINUX_FOLDERS = ("/usr/bin", "/snap/bin", "/var/lib/flatpak/exports/bin")  # Debian's and Ubuntu's packages, snaps
+LINUX_PROGRAMS = ("/opt/google/chrome/chrome", "/opt/microsoft/msedge/msedge")  # Google's and Microsoft's packages
 NO_BROWSER = ("no Chrome, Edge or Chromium found: install one (or set HWLIB_CHROMIUM to its program) and run this "
               "again, or compile answers.tex (pdflatex answers.tex)")
 
@@ -72,7 +78,7 @@ def browser_candidates():
         return [Path(os.environ[folder], *program.split("/")) for folder in WINDOWS_FOLDERS if os.environ.get(folder)
                 for program in WINDOWS_PROGRAMS]
     return [Path(found) for found in map(shutil.which, LINUX_NAMES) if found] + [
-        Path("/usr/bin", name) for name in LINUX_NAMES]
+        Path(folder, name) for folder in LINUX_FOLDERS for name in LINUX_NAMES] + [Path(program) for program in LINUX_PROGRAMS]
 
 
 def chromium_path():
@@ -85,12 +91,18 @@ def chromium_path():
     return None
 
 
+def file_path(url):
+    """The path a ``file:`` URL names, by the standard library's own conversion for this system
+    (``url2pathname``: ``file:///C:/Users/...`` is ``C:\\Users\\...`` on Windows, not ``/C:/Users/...``)."""
+    return Path(url2pathname(urlparse(url).path))
+
+
 def embed_local_fonts(page_html):
     """``page_html`` with every local font file it refers to (MathJax's) embedded as a data URI; a font that is
     not there is dropped (an empty data URI), so that the saved page names no file of this machine."""
 
     def embed(match):
-        path = Path(unquote(urlparse(match.group(2)).path))
+        path = file_path(match.group(2))
         if not path.is_file():
             return "url(data:,)"
         mime = FONT_TYPES[path.suffix.lstrip(".")]
@@ -117,9 +129,11 @@ def typeset_pages(pages, chromium, math=True):
     from playwright.sync_api import sync_playwright
 
     untypeset = []
-    with tempfile.TemporaryDirectory(prefix="hwtools-report-chromium-") as profile, sync_playwright() as playwright:
+    # The browser's profile beside the pages (a snap's /tmp is its own), removed without a fuss where Windows
+    # still holds a file of it a moment after the browser closed.
+    with scratch_folder(".chromium-profile-", pages[0].source.parent) as profile, sync_playwright() as playwright:
         context = playwright.chromium.launch_persistent_context(
-            profile, executable_path=str(chromium), args=CHROMIUM_ARGS, headless=True
+            str(profile), executable_path=str(chromium), args=CHROMIUM_ARGS, headless=True
         )
         # Only the local files load: anything else a page asks for is cut off at once.
         context.route(re.compile(r"^(?!file:)"), lambda route: route.abort())
@@ -159,8 +173,8 @@ def _playwright_defaults(chromium):
         return await pdf(self, *args, **kwargs)
 
     saved_path = os.environ.get("PLAYWRIGHT_BROWSERS_PATH")
-    with tempfile.TemporaryDirectory(prefix="hwtools-report-no-browsers-") as no_browsers:
-        os.environ["PLAYWRIGHT_BROWSERS_PATH"] = no_browsers
+    with scratch_folder("hwtools-report-no-browsers-") as no_browsers:
+        os.environ["PLAYWRIGHT_BROWSERS_PATH"] = str(no_browsers)
         BrowserType.launch, PlaywrightPage.pdf = launch_chromium, pdf_at_css_size
         try:
             yield

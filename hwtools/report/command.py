@@ -9,10 +9,10 @@ import argparse
 import os
 import re
 import sys
-import tempfile
 import time
 from pathlib import Path
 
+from hwtools.files import printable_output, scratch_folder
 from hwtools.report.answers import NAME_LABEL, answers_markdown, compute_answers
 from hwtools.report.chromium import NO_BROWSER, Page, chromium_path, print_pdf, typeset_pages
 from hwtools.report.figures import FIGURES, figure_svg, make_figures, save_figure
@@ -102,8 +102,9 @@ def build_report(out_dir, progress=print, pdf=True, name=None):
     mathjax = mathjax_dir()
     if mathjax is None:
         step("formulas: NOT TYPESET - the jupyter-server-mathjax package is missing (pip install -r requirements.txt)")
-    with tempfile.TemporaryDirectory(prefix="hwtools-report-") as tmp:
-        tmp = Path(tmp)
+    # The scratch folder (the pages the browser reads among its files) is in OUT_DIR, not the system's temporary
+    # folder: Ubuntu's Chromium is a snap, with a /tmp of its own that does not show the system's.
+    with scratch_folder(".report-scratch-", out_dir) as tmp:
         executed, values = _run_notebooks(notebooks, tmp, step)
         p1 = problem_one(values[P1_NOTEBOOK])
         derivation = derivation_markdown(executed[P2_NOTEBOOK])
@@ -128,8 +129,7 @@ def build_report(out_dir, progress=print, pdf=True, name=None):
         tex_path, kept = write_answers_tex(out_dir, latex_text)
         written[ANSWERS_TEX] = tex_path
         if kept is not None:
-            written[kept.name] = kept
-            step(f"answers.tex: you had edited it, so your version is kept as {kept}")
+            step(f"answers.tex: {kept}")
         step(f"answers.tex: written to {tex_path} (its figures are the PDF files beside it)" + (
             f"; converting the {DERIVATION_TODO} derivation SKIPPED - {latex_note}: it is in answers.tex as the Markdown"
             " you wrote" if latex_note else ""))
@@ -182,6 +182,7 @@ def main(argv=None):
                         help=f"fills the '{NAME_LABEL}' line on every page (left blank to write by hand if not given)")
     parser.add_argument("--no-pdf", action="store_true", help="do not print answers.pdf")
     args = parser.parse_args(argv)
+    printable_output()
     try:
         build_report(args.out_dir, progress=lambda message: print(message, flush=True), pdf=not args.no_pdf, name=args.name)
     except ReportError as error:

@@ -4,29 +4,24 @@ PDF files beside it, and the 2.1.1 derivation converted from the student's Markd
 nbconvert's ``markdown2latex``, the filter of its own LaTeX exporter).
 
 It compiles with pdfLaTeX from Debian's texlive-latex-base and texlive-latex-recommended (and on Overleaf).
-A rerun never destroys a student's words: an answers.tex edited since the report wrote it is kept as
-answers.edited.tex (or answers.edited-2.tex, ...) before the new one is written.
+A rerun never destroys a student's words: they are carried into the new answers.tex, or their file is
+kept as it is and the new text written beside it (``words.py``).
 """
 
 from __future__ import annotations
 
-import hashlib
 import re
-import shutil
 from pathlib import Path
 
 from hwtools.report.answers import SYNTHETIC_NOTE, answer_text
 from hwtools.report.figures import FIGURE_CAPTIONS, pdf_name
 from hwtools.report.notebooks import DERIVATION_TODO
+from hwtools.report.words import ANSWERS_TEX, write_answers
 
 TEMPLATES = Path(__file__).resolve().with_name("templates")
-ANSWERS_TEX = "answers.tex"
 # Pandoc's reader for a Jupyter Markdown cell, as nbconvert's LaTeX template reads one: $...$, $$...$$ and
 # \\(...\\) math, lists without a blank line before them.
 MARKDOWN_READER = "markdown+lists_without_preceding_blankline+tex_math_double_backslash"
-# The first line of every answers.tex the report writes; the hash is that of the rest of the file.
-STAMP = "% written by python -m hwtools.report; sha256 of the lines below: {digest}"
-STAMP_LINE = re.compile(r"^% written by python -m hwtools\.report; sha256 of the lines below: ([0-9a-f]{64})\n")
 NAME_RULE = r"\rule{50mm}{0.4pt}"  # the name line to fill in by hand, without --name
 # Characters the report's own text uses that pdfLaTeX's fonts may lack, in LaTeX.
 UNICODE_TEX = {
@@ -116,23 +111,9 @@ def answers_latex(answers, name=None):
     return rendered.lstrip("\n"), note
 
 
-def write_answers_tex(out_dir, text):
-    """Write ``text`` to OUT_DIR/answers.tex under its stamp line. An answers.tex there that the report did not write
-    as it is (the student has edited it) is first renamed to answers.edited.tex (-2, -3, ... if taken); returns
-    (answers.tex, the kept copy or None)."""
-    path, kept = Path(out_dir) / ANSWERS_TEX, None
-    if path.is_file() and not _is_as_written(path.read_text(encoding="utf-8", errors="replace")):
-        kept = path.with_name("answers.edited.tex")
-        number = 1
-        while kept.exists():
-            number += 1
-            kept = path.with_name(f"answers.edited-{number}.tex")
-        shutil.move(path, kept)
-    stamp = STAMP.format(digest=hashlib.sha256(text.encode("utf-8")).hexdigest())
-    path.write_text(f"{stamp}\n{text}", encoding="utf-8")
-    return path, kept
-
-
-def _is_as_written(content):
-    match = STAMP_LINE.match(content)
-    return bool(match) and hashlib.sha256(content[match.end():].encode("utf-8")).hexdigest() == match.group(1)
+def write_answers_tex(out_dir, text, words_from=None):
+    """Write answers.tex of ``text`` into OUT_DIR, keeping the student's words from the answers.tex there (or in
+    ``words_from``): ``words.write_answers``. Returns (answers.tex, the sentence saying how their words were kept,
+    or None)."""
+    note = write_answers(out_dir, text, words_from)
+    return Path(out_dir) / ANSWERS_TEX, note

@@ -244,19 +244,20 @@ def test_every_gradebook_cell_is_the_expected_one(a_class, first_run):
 
 
 def test_the_class_run_writes_canvas_s_gradebook_import_beside_the_gradebook(a_class, first_run):
-    # Canvas's documented import: Student, ID, SIS Login ID, Section first, then one column per
-    # assignment; a "Points Possible" row; a student matched by ID or SIS Login ID.
+    # Without a roster (tests/grader/test_canvas.py has the roster and Canvas's importer): Student, ID,
+    # SIS User ID, SIS Login ID, Section first, then the assignment; a "Points Possible" row; each
+    # submission's id as its SIS Login ID.
     _, out, _, _ = first_run
     with open(out / "grades-canvas.csv", newline="", encoding="utf-8") as handle:
         rows = list(csv.reader(handle))
-    assert rows[0][:4] == ["Student", "ID", "SIS Login ID", "Section"] and len(rows[0]) == 5
-    assert rows[1][0].strip() == "Points Possible" and float(rows[1][4]) == AUTO_POINTS
+    assert rows[0][:5] == ["Student", "ID", "SIS User ID", "SIS Login ID", "Section"] and len(rows[0]) == 6
+    assert rows[1][0].strip() == "Points Possible" and float(rows[1][5]) == AUTO_POINTS
     _, gradebook_rows, order = read_gradebook(out / "grades.csv")
     total = next(column for column in gradebook_rows[order[0]] if column.startswith("auto total"))
-    assert [row[2] for row in rows[2:]] == order and all(row[1] == "" for row in rows[2:])
+    assert [row[3] for row in rows[2:]] == order and all(row[1] == row[2] == "" for row in rows[2:])
     for row in rows[2:]:
-        assert float(row[4]) == float(gradebook_rows[row[2]][total]) and 0 <= float(row[4]) <= AUTO_POINTS
-        assert row[0] == row[2] and not row[0].startswith(("=", "+", "-", "@"))
+        assert float(row[5]) == float(gradebook_rows[row[3]][total]) and 0 <= float(row[5]) <= AUTO_POINTS
+        assert row[0] == row[3] and not row[0].startswith(("=", "+", "-", "@"))
 
 
 def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class, first_run, grader):

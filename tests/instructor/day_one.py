@@ -21,6 +21,7 @@ import shutil
 import subprocess
 import sys
 import sysconfig
+import tempfile
 from pathlib import Path
 
 KIT = Path(__file__).resolve().parents[2]
@@ -54,24 +55,82 @@ def kit_env(kit, python=None):
 FOREIGN_PROGRAMS = "foreign-programs"  # beside a foreign student Python's bin/: the programs its PATH holds
 
 
-def student_python(folder, foreign=False):
+def versions_tested():
+    """The Python versions the student edition is tested on, oldest first: pyproject.toml's classifiers."""
+    import tomllib  # noqa: PLC0415 - 3.11+, as the instructor's kit's Python
+
+    classifiers = tomllib.loads((KIT / "pyproject.toml").read_text(encoding="utf-8"))["project"]["classifiers"]
+    found = [re.fullmatch(r"Programming Language :: Python :: (3\.\d+)", line) for line in classifiers]
+    return sorted((match.group(1) for match in found if match), key=lambda version: tuple(map(int, version.split("."))))
+
+
+def find_python(version):
+    """A CPython ``version`` ("3.10") on this machine, or None: ``python3.10`` on PATH, else one pyenv built
+    (``~/.pyenv/versions/3.10.*``); this Python for its own version."""
+    if sysconfig.get_python_version() == version:
+        return Path(sys.executable)
+    for candidate in [*sorted(Path.home().glob(f".pyenv/versions/{version}.*/bin/python{version}"), reverse=True),
+                      shutil.which(f"python{version}")]:  # pyenv's shims on PATH only run the version pyenv selects
+        if candidate and subprocess.run([str(candidate), "-c", "pass"], capture_output=True, timeout=60).returncode == 0:
+            return Path(candidate)
+    return None
+
+
+PACKAGES_CACHE = Path.home() / ".cache" / "hwkit-test-pythons"  # outside the clone: shared by every test run here
+
+
+def packages_of(python):
+    """The site-packages folder of a virtual environment of ``python`` (another version than this one) with the
+    kit's requirements installed: built once per machine and requirements (``PACKAGES_CACHE``, under a lock, in
+    place only once complete), then shared by every test run, as this environment's own packages are."""
+    import fcntl  # noqa: PLC0415 - the instructor's kit runs on Linux
+    import hashlib  # noqa: PLC0415
+
+    requirements = [line for line in (KIT / "requirements.txt").read_text().splitlines()
+                    if line.strip() and not line.startswith(("#", "-e"))]
+    version = subprocess.run([str(python), "-c", "import sys; print('%d.%d.%d' % sys.version_info[:3])"],
+                             capture_output=True, text=True, check=True, timeout=60).stdout.strip()
+    key = hashlib.sha256("\n".join([version, *requirements]).encode()).hexdigest()[:16]
+    venv = PACKAGES_CACHE / f"cpython-{version}-{key}"
+    PACKAGES_CACHE.mkdir(parents=True, exist_ok=True)
+    with open(PACKAGES_CACHE / ".lock", "w") as lock:  # noqa: PTH123
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not venv.is_dir():
+            building = Path(tempfile.mkdtemp(prefix=f".{venv.name}-", dir=PACKAGES_CACHE))
+            subprocess.run([str(python), "-m", "venv", str(building)], check=True, timeout=300)
+            subprocess.run([str(building / "bin" / "python"), "-m", "pip", "install", "-q", *requirements], check=True,
+                           timeout=1800, env={**os.environ, "PIP_DISABLE_PIP_VERSION_CHECK": "1"})
+            building.rename(venv)  # its site-packages and share/ are all the tests use of it: they move with it
+    purelib = subprocess.run([str(venv / "bin" / "python"), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                             capture_output=True, text=True, check=True, timeout=60).stdout.strip()
+    return Path(purelib)
+
+
+def student_python(folder, foreign=False, system=None, home=None, base=None):
     """A Python like a student's, in the new folder ``folder``: a virtual environment with this
     environment's packages (those of requirements.txt) but not this kit's own (its editable install
     is not read), so ``instructor`` cannot be imported. Run it with ``kit_env(edition, python)``: the
-    edition is then on its path, as the edition's own ``pip install -e .`` puts it. ``foreign``: every
-    process of it takes Windows's gaps away from the kit's code (``foreign_os.py``)."""
-    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(folder)], check=True, timeout=300)
+    edition is then on its path, as the edition's own ``pip install -e .`` puts it. ``system``
+    ("macos", "windows", "hub"; ``foreign``: "windows"): every process of it behaves as on that system
+    (``foreign_os.py``; ``home``: the hub's read-only home). ``base``: another Python to make it of (then
+    with packages of its own version, ``packages_of``)."""
+    base = Path(base or sys.executable)
+    subprocess.run([str(base), "-m", "venv", "--without-pip", str(folder)], check=True, timeout=300)
     python = Path(folder) / "bin" / "python"
     purelib = subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
                              capture_output=True, text=True, check=True).stdout.strip()
-    Path(purelib, "kit-packages.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")
-    (Path(folder) / "share").symlink_to(Path(sys.prefix) / "share")  # Jupyter's data files (nbconvert's templates)
-    if foreign:
+    same = base == Path(sys.executable)
+    packages = sysconfig.get_paths()["purelib"] if same else packages_of(base)
+    Path(purelib, "kit-packages.pth").write_text(f"{packages}\n")
+    (Path(folder) / "share").symlink_to(Path(sys.prefix if same else Path(packages).parents[2]) / "share")  # Jupyter's data files
+    system = system or ("windows" if foreign else None)
+    if system:
         import foreign_os  # noqa: PLC0415 - not installed by importing it
 
         shutil.copyfile(foreign_os.__file__, Path(purelib, "foreign_os.py"))
-        Path(purelib, "foreign-os.pth").write_text("import foreign_os; foreign_os.install()\n")
-        foreign_os.stripped_path(Path(folder) / FOREIGN_PROGRAMS)
+        Path(purelib, "foreign-os.pth").write_text(
+            f"import foreign_os; foreign_os.install({system!r}, home={None if home is None else str(home)!r})\n")
+        foreign_os.stripped_path(Path(folder) / FOREIGN_PROGRAMS, system)
     return python
 
 
@@ -149,4 +208,87 @@ def run_all(notebook, kit):
     done = subprocess.run([sys.executable, "-c", RUN_ALL, str(notebook)], capture_output=True, text=True,
                           env=kit_env(kit), cwd=kit, timeout=1800)
     assert done.returncode == 0, done.stderr[-3000:]
+    return json.loads(done.stdout)
+
+
+RUN_CELLS = r'''
+import json, sys
+import nbformat
+from nbclient import NotebookClient
+
+kit, sources = sys.argv[1], json.loads(sys.argv[2])
+notebook = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(source) for source in sources])
+client = NotebookClient(notebook, timeout=900, allow_errors=True, kernel_name="python3", resources={"metadata": {"path": kit}})
+with client.setup_kernel():
+    for index, cell in enumerate(notebook.cells):
+        client.execute_cell(cell, index)
+json.dump([cell.outputs for cell in notebook.cells], sys.stdout)
+'''
+
+
+def run_cells(python, kit, sources):
+    """The outputs of the code cells ``sources``, run in turn in one kernel of ``python`` (a student's, the
+    kernel its own: Jupyter starts the kernel with the Python that asks) on the kit at ``kit``."""
+    done = subprocess.run([str(python), "-c", RUN_CELLS, str(kit), json.dumps(sources)], capture_output=True,
+                          env=kit_env(kit, python), cwd=kit, timeout=1800)
+    assert done.returncode == 0, done.stderr[-3000:].decode("utf-8", "replace")
+    return json.loads(done.stdout)
+
+
+INTERRUPT = r'''
+import json, os, sys, time
+from jupyter_client import KernelManager
+
+kit, todo, token = sys.argv[1:4]
+
+def runs():
+    """The grader and its workers of this kit: processes whose command line names it (the grader), or whose
+    environment carries the token (the workers, started with a clean environment, carry the kit's path)."""
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit() or int(entry) == os.getpid():
+            continue
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as handle:
+                line = handle.read().replace(b"\0", b" ").decode("utf-8", "replace")
+        except OSError:
+            continue
+        if ("hwtools.grade" in line or "worker.py" in line) and token in line:
+            found.append(line)
+    return found
+
+manager = KernelManager(kernel_name="python3")
+manager.start_kernel(cwd=kit)
+client = manager.client()
+client.start_channels()
+client.wait_for_ready(timeout=300)
+request = client.execute(f"from hwtools.notebook import check\ncheck({todo!r})")
+begun = time.monotonic()
+while not any("worker.py" in line for line in runs()):
+    if time.monotonic() - begun > 600:
+        raise SystemExit("no worker started within 600 s")
+    time.sleep(0.05)
+time.sleep(1.0)  # the worker is in the student's loop
+interrupted = time.monotonic()
+manager.interrupt_kernel()
+reply = client.get_shell_msg(timeout=600)
+while reply["parent_header"].get("msg_id") != request:
+    reply = client.get_shell_msg(timeout=600)
+ended = time.monotonic() - interrupted
+time.sleep(0.2)
+left = runs()
+client.stop_channels()
+manager.shutdown_kernel(now=True)
+json.dump({"status": reply["content"]["status"], "error": reply["content"].get("ename"),
+           "seconds": round(ended, 2), "left": left}, sys.stdout)
+'''
+
+
+def interrupt_a_check(python, kit, todo):
+    """Run ``check(todo)`` in a kernel of ``python`` on the kit at ``kit``, press Kernel > Interrupt once the
+    grader's worker runs, and say what happened: {"status", "error" (the cell's), "seconds" (from the interrupt
+    to the cell's end), "left" (the command lines of the kit's grader and workers still alive then)}."""
+    done = subprocess.run([str(python), "-c", INTERRUPT, str(kit), todo, str(kit)], capture_output=True,
+                          env=kit_env(kit, python), cwd=kit, timeout=1800)
+    assert done.returncode == 0, done.stderr[-3000:].decode("utf-8", "replace")
     return json.loads(done.stdout)

@@ -1,28 +1,42 @@
-"""Windows's gaps on this Linux box, for the kit's own code only (a test aid, never shipped; issue 32.7).
+"""What macOS, Windows and a JupyterHub do differently, on this Linux box (a test aid, never shipped; issue 39).
 
-Imported at the start of every Python process of a student's virtual environment by a ``.pth`` line
-(``day_one.student_python(folder, foreign=True)``): the notebook kernel, ``python -m hwtools.grade``
-and the grader's worker (``python -B -s worker.py``: ``-s`` leaves site-packages' ``.pth`` files on).
-Windows lacks more than macOS does, so code that runs here runs on both, as far as these go.
+A profile is installed in a student's virtual environment (``day_one.student_python(folder, system=...)``)
+by a ``.pth`` line in its site-packages, ``import foreign_os; foreign_os.install("windows")``, so it runs
+at the start of every Python process of that environment, whatever its environment variables: the
+notebook kernel, ``python -m hwtools.grade``, the grader's worker (``python -B -s worker.py``, started
+with a clean environment: ``-s`` leaves site-packages' ``.pth`` files on), the report and its kernels.
+``stripped_path(folder, system)`` makes the programs the environment's ``PATH`` holds.
 
-Kit code is a frame whose module is ``hwlib`` or ``hwtools`` (or in them), or whose code file lies
-under a ``hwlib/`` or ``hwtools/`` folder (the kit's copies in temporary folders too, the worker
-script run as ``__main__`` too). Only kit code is refused, so that the third-party code of this
-Linux box (Jupyter, tornado, zmq, subprocess's internals) keeps working:
+Each profile does what its system does (the CPython issues and docs each behaviour comes from are named
+below, and in ``docs/development.md``). A behaviour that on the real system binds every program binds every
+program here too where this box's other code copes (the refused address-space limit, "spawn", the code page of the
+standard streams, the refused SIGINT wake-up); one that other code meets only through its own branches for
+that system (this box's Jupyter, tornado and zmq take their Linux branches) binds the kit's own code only:
+a call the kit asks for, i.e. whose nearest caller outside the standard library is kit code (a frame whose
+module is in ``hwlib``/``hwtools``, or whose file lies under such a folder, the worker script included).
 
-* importing a Unix-only module (``UNIX_MODULES``) raises ModuleNotFoundError;
-* reading a Unix-only name of ``os``, ``signal`` or ``select`` (``UNIX_NAMES``, the Python docs'
-  "Availability: Unix" or "Linux") raises AttributeError, so ``hasattr(os, "killpg")`` is False there;
-* ``select.select`` raises OSError (WinError 10038) on anything that is not a socket, and 10022 on
-  three empty lists, and ``/proc`` does not exist (``os.listdir``, ``os.scandir``, ``os.stat``,
-  ``os.lstat``, ``os.open``, ``os.access``, ``os.readlink``, ``open``, and so ``os.path`` and
-  ``pathlib``), when the kit asks: when the nearest caller outside the standard library is kit code
-  (the standard library branches by system itself; a third-party library called by the kit has
-  branches of its own for Windows, which this box does not take).
+``"macos"``: no ``/proc``; no pidfd, ``sched_getaffinity``, ``epoll``, ``pipe2``; ``setrlimit`` of a
+finite ``RLIMIT_AS`` or ``RLIMIT_DATA`` raises ``ValueError: current limit exceeds maximum limit``
+(cpython#78783, #84698), for every caller; ``multiprocessing`` starts with "spawn"; no bubblewrap,
+``prlimit`` or Chromium on ``PATH``.
 
-``install()`` does it; the ``.pth`` line is ``import foreign_os; foreign_os.install()``, so that a test
-process can import this module without it. ``stripped_path(folder)`` makes the rest: a folder of
-links to the system's programs but bubblewrap, ``prlimit`` and Chromium, for ``PATH``.
+``"windows"``: the Unix-only modules (``UNIX_MODULES``) refused at import and the Unix-only names
+(``UNIX_NAMES``: ``SIGKILL`` and ``SIGALRM`` among them, so no CPU-time limit and pytest-timeout's thread
+method) hidden; ``select()`` takes sockets only; no ``/proc``; without UTF-8 mode (``PYTHONUTF8``,
+``-X utf8``, PEP 540) a standard stream that is not a terminal is cp1252 (stdout and stdin strict, stderr
+backslashreplace) unless ``PYTHONIOENCODING`` says otherwise, and the kit's ``open()`` and text pipes
+without ``encoding=`` are cp1252 too (``locale.getencoding()`` there); a file held open by any process
+cannot be removed, renamed or replaced, nor a folder that holds one (``PermissionError``, WinError 32:
+the lock shim, ``held``); ``shutil.rmtree`` works by names, as there; SIGINT (Ctrl+C, Kernel >
+Interrupt) reaches Python as Windows' console handler does, from another thread
+(``_thread.interrupt_main``), so it wakes no blocking wait (cpython gh-74157); ``taskkill`` on ``PATH``
+ends a process tree (``/T``), by parent ids as Windows does; no bubblewrap, ``prlimit`` or Chromium.
+
+``"hub"`` (a JupyterHub's single-user server): the home folder ``home`` is read-only for the kit
+(``OSError`` EROFS on every write, folder or lock file made there), and user namespaces are off (the
+``bwrap`` on ``PATH`` fails as it does there). Linux otherwise.
+
+``install()`` (no argument) is ``install("windows")``, the profile of issue 32.7.
 """
 
 from __future__ import annotations
@@ -33,12 +47,17 @@ import importlib
 import io
 import os
 import select
+import shutil
 import signal
 import stat
+import subprocess
 import sys
+import threading
 import types
 
+SYSTEMS = ("macos", "windows", "hub")
 KIT_PACKAGES = frozenset({"hwlib", "hwtools"})
+WINDOWS_AWARE = frozenset({"pytest_timeout"})  # libraries whose own Windows branch the kit's tests rely on
 UNIX_MODULES = frozenset({"fcntl", "resource", "pwd", "grp", "termios", "pty", "tty"})
 UNIX_NAMES = {
     os: frozenset({
@@ -56,8 +75,18 @@ UNIX_NAMES = {
     }),
     select: frozenset({"poll", "epoll", "devpoll", "kqueue"}),
 }
+MAC_MISSING = {
+    os: frozenset({"pidfd_open", "sched_getaffinity", "sched_setaffinity", "pipe2", "memfd_create", "posix_fallocate",
+                   "eventfd", "splice"}),
+    signal: frozenset({"pidfd_send_signal", "sigtimedwait", "sigwaitinfo"}),
+    select: frozenset({"epoll", "devpoll"}),
+}
+MAC_REFUSED_LIMITS = ("RLIMIT_AS", "RLIMIT_DATA")
+CODE_PAGE = "cp1252"
+WINERROR_32 = "[WinError 32] The process cannot access the file because it is being used by another process"
 PROGRAMS_LEFT_OUT = ("bwrap", "prlimit", "chromium", "google-chrome")  # names, and names that start so
 _kit_files = {}
+_system = None
 
 
 def _kit_file(filename):
@@ -68,13 +97,13 @@ def _kit_file(filename):
     return _kit_files[filename]
 
 
-def _kit_globals(namespace):
+def _kit_globals(namespace, aware=frozenset()):
     name = namespace.get("__name__") or ""
-    return name.partition(".")[0] in KIT_PACKAGES or _kit_file(namespace.get("__file__") or "")
+    return name.partition(".")[0] in KIT_PACKAGES | aware or _kit_file(namespace.get("__file__") or "")
 
 
-def _kit_frame(frame):
-    return _kit_globals(frame.f_globals) or _kit_file(frame.f_code.co_filename)
+def _kit_frame(frame, aware=frozenset()):
+    return _kit_globals(frame.f_globals, aware) or _kit_file(frame.f_code.co_filename)
 
 
 _STDLIB = os.path.dirname(os.__file__) + os.sep
@@ -89,6 +118,28 @@ def _asked_by_kit(frame):
             return _kit_frame(frame)
         frame = frame.f_back
     return False
+
+
+class _Wrapped:
+    """``function`` behind ``check(args, kwargs)``, which raises where the system would refuse. Not a function, so
+    that a class holding it (3.10's ``pathlib._NormalAccessor.stat = os.stat``) calls it unbound, as a builtin."""
+
+    def __init__(self, function, check):
+        self.__wrapped__, self._check = function, check
+        self.__name__ = self.__qualname__ = getattr(function, "__name__", "call")
+        self.__doc__ = function.__doc__
+
+    def __call__(self, *args, **kwargs):
+        self._check(args, kwargs)
+        return self.__wrapped__(*args, **kwargs)
+
+
+_wrap = _Wrapped
+
+
+def _plain(function):
+    """``function`` as an object a class attribute does not bind (3.10's ``_NormalAccessor.open = io.open``)."""
+    return _Wrapped(function, lambda args, kwargs: None)
 
 
 # --- the Unix-only modules ---------------------------------------------------------------------
@@ -113,14 +164,14 @@ def _guarded_import_module(name, package=None):
     return _import_module(name, package)
 
 
-# --- the Unix-only names -----------------------------------------------------------------------
+# --- the names one system lacks ----------------------------------------------------------------
 
-def _hide(module, names):
+def _hide(module, names, aware=frozenset()):
     read = types.ModuleType.__getattribute__
 
     class ForeignModule(types.ModuleType):
         def __getattribute__(self, name):
-            if name in names and _kit_frame(sys._getframe(1)):
+            if name in names and _kit_frame(sys._getframe(1), aware):
                 raise AttributeError(f"module {module.__name__!r} has no attribute {name!r}")
             return read(self, name)
 
@@ -152,8 +203,14 @@ def _sockets_only_select(rlist, wlist, xlist, timeout=None):
 
 # --- no /proc ----------------------------------------------------------------------------------
 
+def _path_of(args, kwargs, names=("path", "file", "src")):
+    if args:
+        return args[0]
+    return next((kwargs[name] for name in names if name in kwargs), None)
+
+
 def _in_proc(path):
-    if isinstance(path, int):
+    if path is None or isinstance(path, int):
         return False
     try:
         path = os.fsdecode(path)
@@ -165,34 +222,285 @@ def _in_proc(path):
     return path == "/proc" or path.startswith("/proc/")
 
 
-def _without_proc(function):
-    def call(*args, **kwargs):
-        path = args[0] if args else kwargs.get("path", kwargs.get("file"))
-        if path is not None and _in_proc(path) and _asked_by_kit(sys._getframe(1)):
-            raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), os.fspath(path))
-        return function(*args, **kwargs)
-
-    call.__name__ = call.__qualname__ = function.__name__
-    call.__doc__ = function.__doc__
-    return call
+def _no_proc(args, kwargs):
+    path = _path_of(args, kwargs)
+    if _in_proc(path) and _asked_by_kit(sys._getframe(2)):
+        raise FileNotFoundError(errno.ENOENT, os.strerror(errno.ENOENT), os.fspath(path))
 
 
-def install():
-    """Take the facilities away (once per process)."""
-    if getattr(builtins.__import__, "__module__", None) == __name__:
+# --- Windows: the code page --------------------------------------------------------------------
+
+def _code_page_streams():
+    """The standard streams that are not a terminal in the ANSI code page, as Python on Windows opens them
+    without UTF-8 mode or PYTHONIOENCODING (stdout strict, stderr backslashreplace)."""
+    if sys.flags.utf8_mode or os.environ.get("PYTHONIOENCODING"):
+        return
+    for name, errors in (("stdin", "strict"), ("stdout", "strict"), ("stderr", "backslashreplace")):
+        stream = getattr(sys, name, None)
+        try:
+            if stream is not None and not stream.isatty():
+                stream.reconfigure(encoding=CODE_PAGE, errors=errors)
+        except (AttributeError, ValueError, OSError):
+            continue
+
+
+def _text_mode(mode):
+    return "b" not in mode
+
+
+def _code_page_open(function):
+    def call(file, mode="r", buffering=-1, encoding=None, *args, **kwargs):
+        if encoding in (None, "locale") and _text_mode(mode) and not sys.flags.utf8_mode and \
+                _asked_by_kit(sys._getframe(1)):
+            encoding = CODE_PAGE
+        return function(file, mode, buffering, encoding, *args, **kwargs)
+
+    return _plain(call)
+
+
+def _code_page_pipes():
+    init = subprocess.Popen.__init__
+
+    def __init__(self, *args, **kwargs):  # noqa: N807 - Popen's own
+        text = kwargs.get("text") or kwargs.get("universal_newlines")
+        if text and kwargs.get("encoding") in (None, "locale") and not sys.flags.utf8_mode and \
+                _asked_by_kit(sys._getframe(1)):
+            kwargs["encoding"] = CODE_PAGE
+        init(self, *args, **kwargs)
+
+    subprocess.Popen.__init__ = __init__
+
+
+# --- Windows: a file held open cannot be removed or replaced (the lock shim) --------------------
+
+def _open_elsewhere(path):
+    """Whether any process (this one too) holds the regular file ``path`` open: a write lease is refused then."""
+    import fcntl  # noqa: PLC0415 - this box's, for the shim itself
+
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW)
+    except OSError:
+        return False
+    try:
+        fcntl.fcntl(fd, fcntl.F_SETLEASE, fcntl.F_WRLCK)
+    except OSError:
+        return True
+    else:
+        fcntl.fcntl(fd, fcntl.F_SETLEASE, fcntl.F_UNLCK)
+        return False
+    finally:
+        os.close(fd)
+
+
+def held(path):
+    """The first file at or under ``path`` that some process holds open (Windows then refuses to remove,
+    rename or replace it, or a folder above it), or None."""
+    try:
+        mode = os.lstat(path).st_mode
+    except (OSError, TypeError, ValueError):
+        return None
+    if stat.S_ISREG(mode):
+        return os.fspath(path) if _open_elsewhere(path) else None
+    if stat.S_ISDIR(mode):
+        for root, _, files in os.walk(path):
+            for name in files:
+                full = os.path.join(root, name)
+                if stat.S_ISREG(os.lstat(full).st_mode) and _open_elsewhere(full):
+                    return full
+    return None
+
+
+def _refuse_held(*paths):
+    for path in paths:
+        if path is not None and not isinstance(path, int) and held(path):
+            raise PermissionError(errno.EACCES, WINERROR_32, os.fspath(path))
+
+
+def lock_shim():
+    """{(module, name): the shim} of the calls that refuse a held file, for ``install`` or a test's monkeypatch."""
+    def one(args, kwargs):
+        if _asked_by_kit(sys._getframe(2)):
+            _refuse_held(_path_of(args, kwargs))
+
+    def two(args, kwargs):
+        if _asked_by_kit(sys._getframe(2)):
+            _refuse_held(args[0] if args else kwargs.get("src"), args[1] if len(args) > 1 else kwargs.get("dst"))
+
+    def writes(args, kwargs):  # a viewer shares its file for reading only: no one writes it meanwhile
+        flags = args[1] if len(args) > 1 else kwargs.get("flags", 0)
+        if flags & (os.O_WRONLY | os.O_RDWR | os.O_TRUNC | os.O_APPEND):
+            one(args, kwargs)
+
+    shims = {(os, name): _wrap(getattr(os, name), one) for name in ("remove", "unlink", "rmdir")}
+    shims.update({(os, name): _wrap(getattr(os, name), two) for name in ("rename", "replace")})
+    shims[os, "open"] = _wrap(os.open, writes)
+    opener = io.open
+
+    def held_open(file, mode="r", *args, **kwargs):
+        if any(flag in mode for flag in "wa+") and _asked_by_kit(sys._getframe(1)):
+            _refuse_held(file)
+        return opener(file, mode, *args, **kwargs)
+
+    shims[io, "open"] = shims[builtins, "open"] = _plain(held_open)
+    shims[shutil, "_use_fd_functions"] = False  # rmtree by names, as on Windows
+    return shims
+
+
+# --- Windows: Ctrl+C from another thread -------------------------------------------------------
+
+def _interrupt_from_a_thread():
+    """SIGINT no longer interrupts what the main thread waits in: a thread takes it and asks the main thread
+    to raise KeyboardInterrupt at its next bytecode, as Windows' console control handler does."""
+    if threading.current_thread() is not threading.main_thread():
+        return
+    signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    import _thread  # noqa: PLC0415
+
+    def relay():
+        while True:
+            signal.sigwait({signal.SIGINT})
+            _thread.interrupt_main()
+
+    threading.Thread(target=relay, name="foreign-os-ctrl-c", daemon=True).start()
+
+
+# --- macOS -------------------------------------------------------------------------------------
+
+def _refused_limits():
+    import resource  # noqa: PLC0415
+
+    setrlimit, refused = resource.setrlimit, {getattr(resource, name) for name in MAC_REFUSED_LIMITS}
+
+    def mac_setrlimit(which, limits):
+        if which in refused and any(value != resource.RLIM_INFINITY for value in limits):
+            raise ValueError("current limit exceeds maximum limit")
+        return setrlimit(which, limits)
+
+    resource.setrlimit = mac_setrlimit
+
+
+def _spawn():
+    import multiprocessing.context as context  # noqa: PLC0415
+
+    context._default_context._default_context = context._concrete_contexts["spawn"]  # what macOS's Python sets
+
+
+# --- a JupyterHub: a read-only home ------------------------------------------------------------
+
+def _read_only(home):
+    home = os.path.realpath(home)
+    os.environ["HOME"] = home  # the hub's home, for this process and those it starts
+
+    def under(path):
+        if path is None or isinstance(path, int):
+            return False
+        try:
+            path = os.path.realpath(os.fsdecode(path))
+        except (TypeError, ValueError):
+            return False
+        return path == home or path.startswith(home + os.sep)
+
+    def refuse(path):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS), os.fspath(path))
+
+    def writes(args, kwargs):
+        path = _path_of(args, kwargs)
+        if under(path) and _asked_by_kit(sys._getframe(2)):
+            refuse(path)
+
+    def moves(args, kwargs):
+        for path in args[:2]:
+            if under(path) and _asked_by_kit(sys._getframe(2)):
+                refuse(path)
+
+    def os_open(args, kwargs):
+        flags = args[1] if len(args) > 1 else kwargs.get("flags", 0)
+        if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND):
+            writes(args, kwargs)
+
+    for name in ("mkdir", "remove", "unlink", "rmdir"):
+        setattr(os, name, _wrap(getattr(os, name), writes))
+    for name in ("rename", "replace"):
+        setattr(os, name, _wrap(getattr(os, name), moves))
+    os.open = _wrap(os.open, os_open)
+    opener = io.open
+
+    def hub_open(file, mode="r", *args, **kwargs):
+        if any(flag in mode for flag in "wax+") and under(file) and _asked_by_kit(sys._getframe(1)):
+            refuse(file)
+        return opener(file, mode, *args, **kwargs)
+
+    builtins.open = io.open = _plain(hub_open)
+
+
+# --- install -----------------------------------------------------------------------------------
+
+def install(system="windows", home=None):
+    """Make this process behave as on ``system`` (once per process); ``home``: the hub's read-only home."""
+    global _system
+    if system not in SYSTEMS:
+        raise ValueError(f"system must be one of {', '.join(SYSTEMS)}, got {system!r}")
+    if _system is not None:
+        return
+    _system = system
+    if system == "hub":
+        _read_only(home or os.path.expanduser("~"))
+        return
+    names = UNIX_NAMES if system == "windows" else MAC_MISSING
+    for module, hidden in names.items():
+        _hide(module, hidden, WINDOWS_AWARE if system == "windows" else frozenset())
+    for name in ("stat", "lstat", "open", "access", "readlink", "listdir", "scandir"):
+        setattr(os, name, _wrap(getattr(os, name), _no_proc))
+    opener = _wrap(io.open, _no_proc)
+    if system == "macos":
+        builtins.open = io.open = opener
+        _refused_limits()
+        _spawn()
         return
     builtins.__import__, importlib.import_module = _guarded_import, _guarded_import_module
-    for module, names in UNIX_NAMES.items():
-        _hide(module, names)
     select.select = _sockets_only_select
-    for name in ("stat", "lstat", "open", "access", "readlink", "listdir", "scandir"):
-        setattr(os, name, _without_proc(getattr(os, name)))
-    builtins.open = io.open = _without_proc(io.open)
+    io.open = opener
+    for (module, name), shim in lock_shim().items():
+        setattr(module, name, shim)
+    builtins.open = io.open = _code_page_open(io.open)
+    _code_page_streams()
+    _code_page_pipes()
+    _interrupt_from_a_thread()
 
 
-def stripped_path(folder):
+TASKKILL = '''#!{python}
+"""taskkill /F [/T] /PID N, as Windows' ends a process (tree): by parent ids, the orphans left out."""
+import os, signal, sys
+args = [arg.upper() for arg in sys.argv[1:]]
+pid = int(sys.argv[1:][args.index("/PID") + 1])
+children = {{}}
+for entry in os.listdir("/proc"):
+    try:
+        with open(f"/proc/{{entry}}/stat") as handle:
+            children.setdefault(int(handle.read().rpartition(")")[2].split()[1]), []).append(int(entry))
+    except (OSError, ValueError):
+        continue
+tree, pending = [], [pid]
+while pending:
+    tree.append(pending.pop())
+    pending += children.get(tree[-1], []) if "/T" in args else []
+for one in tree:
+    try:
+        os.kill(one, signal.SIGKILL)
+    except OSError:
+        pass
+print(f"SUCCESS: the process with PID {{pid}} has been terminated.")
+'''
+NO_USERNS = '''#!/bin/sh
+echo "bwrap: No permissions to creating new namespace, likely because the kernel does not allow non-privileged user namespaces" >&2
+exit 1
+'''
+
+
+def stripped_path(folder, system="windows"):
     """A new folder ``folder`` of links to every program of this system's PATH folders but bubblewrap,
-    ``prlimit`` and Chromium (``PROGRAMS_LEFT_OUT``), for ``PATH``; returns it."""
+    ``prlimit`` and Chromium (``PROGRAMS_LEFT_OUT``), for ``PATH``, with what ``system`` has instead
+    (Windows: ``taskkill``; a hub: a ``bwrap`` that cannot make namespaces); returns it."""
     folder = os.path.abspath(folder)
     os.makedirs(folder)
     for directory in ("/usr/local/sbin", "/usr/local/bin", "/usr/sbin", "/usr/bin", "/sbin", "/bin"):
@@ -202,5 +510,10 @@ def stripped_path(folder):
             link = os.path.join(folder, name)
             if not name.startswith(PROGRAMS_LEFT_OUT) and not os.path.lexists(link):
                 os.symlink(os.path.join(directory, name), link)
+    own = {"windows": {"taskkill": TASKKILL.format(python=sys.executable)}, "hub": {"bwrap": NO_USERNS}}.get(system, {})
+    for name, text in own.items():
+        path = os.path.join(folder, name)
+        with open(path, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.chmod(path, 0o755)
     return folder
-

@@ -8,7 +8,9 @@ Chromium.
 from __future__ import annotations
 
 import json
+import re
 import subprocess
+from pathlib import Path
 
 import pytest
 
@@ -100,3 +102,115 @@ def test_the_kit_is_refused_every_unix_only_facility_and_other_code_is_not(probe
     assert not refused, refused
     assert other["os.path.exists /proc"] == other["select a socket"] == "True"
     assert other["os.killpg"] == other["signal.SIGKILL"] == other["select.poll"] == "True"
+
+
+# --- what each system does differently (issue 39): the kit's code and other code in every process ----------------
+
+BEHAVIOUR = r'''
+import json, multiprocessing, os, signal, subprocess, sys, threading, time
+
+def limit(name, value):
+    import resource
+    return resource.setrlimit(getattr(resource, name), (value, resource.RLIM_INFINITY))
+
+def attempt(action):
+    try:
+        return repr(action())
+    except BaseException as error:
+        return f"{type(error).__name__}: {error}"
+
+def interrupted_wait():
+    """SIGINT to this process 0.3 s into a 3 s wait: how long the wait lasted before KeyboardInterrupt."""
+    begun = time.monotonic()
+    threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+    try:
+        threading.Event().wait(3.0)
+    except KeyboardInterrupt:
+        pass
+    time.sleep(0.1)  # where KeyboardInterrupt comes after the wait, it comes here
+    return "long" if time.monotonic() - begun > 2.5 else "short"
+
+def behaviours(folder):
+    held = os.path.join(folder, "held.pdf")
+    with open(held, "w") as handle:
+        handle.write("x")
+    viewer = open(held)
+    said = {
+        "setrlimit RLIMIT_AS 1 GiB": attempt(lambda: limit("RLIMIT_AS", 2**30)),
+        "setrlimit RLIMIT_CPU 600 s": attempt(lambda: limit("RLIMIT_CPU", 600)),
+        "start method": multiprocessing.get_start_method(),
+        "a child's piped Ł": attempt(lambda: subprocess.run([sys.executable, "-c", "print('\u0141')"], capture_output=True).returncode),
+        "a UTF-8 child's piped Ł": attempt(lambda: subprocess.run([sys.executable, "-X", "utf8", "-c", "print('\u0141')"],
+                                                                  capture_output=True).stdout),
+        "open() encoding": attempt(lambda: open(os.path.join(folder, "text.txt"), "w").encoding),
+        "remove a held file": attempt(lambda: os.remove(held)),
+        "write in home": attempt(lambda: open(os.path.join(os.path.expanduser("~"), "note.txt"), "w").close()),
+        "SIGINT in a wait": interrupted_wait(),
+    }
+    viewer.close()
+    return said
+
+if __name__ == "__main__":
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    import elsewhere
+    json.dump({"kit": behaviours(sys.argv[1]), "other": elsewhere.behaviours(sys.argv[2])}, sys.stdout)
+'''
+HELD = "PermissionError: [Errno 13] [WinError 32] The process cannot access the file because it is being used by another process: "
+EXPECTED = {  # what a system does differently; "same" as on this Linux box
+    "macos": {"kit": {"setrlimit RLIMIT_AS 1 GiB": "ValueError: current limit exceeds maximum limit", "start method": "spawn"},
+              "other": {"setrlimit RLIMIT_AS 1 GiB": "ValueError: current limit exceeds maximum limit", "start method": "spawn"}},
+    "windows": {"kit": {"setrlimit RLIMIT_AS 1 GiB": "ModuleNotFoundError: No module named 'resource'",
+                        "setrlimit RLIMIT_CPU 600 s": "ModuleNotFoundError: No module named 'resource'", "a child's piped Ł": "1", "open() encoding": "'cp1252'", "remove a held file": HELD + "'{folder}/held.pdf'",
+                        "SIGINT in a wait": "long"},
+                "other": {"a child's piped Ł": "1", "SIGINT in a wait": "long"}},
+    "hub": {"kit": {"write in home": "OSError: [Errno 30] Read-only file system: '{home}/note.txt'"}, "other": {}},
+}
+
+
+@pytest.mark.parametrize("system", sorted(EXPECTED))
+def test_each_profile_does_what_its_system_does(tmp_path, system):
+    """In every process of the profile's Python: macOS refuses a finite RLIMIT_AS and starts with "spawn" (every
+    caller); Windows pipes a child's text in cp1252, strictly (every caller), opens the kit's files in cp1252,
+    refuses the kit the removal of a file held open, and wakes no wait on SIGINT (every caller: Ctrl+C comes from
+    another thread); a hub's home is read-only for the kit. Everything else is as on this Linux box. Made to fail
+    once: without ``_interrupt_from_a_thread`` the Windows profile's waits were "short"."""
+    home = tmp_path / "home"
+    home.mkdir()
+    python = student_python(tmp_path / "venv", system=system, home=home)
+    code = tmp_path / "code"
+    (code / "hwtools").mkdir(parents=True)
+    for path in (code / "hwtools" / "probe.py", code / "elsewhere.py"):
+        path.write_text(BEHAVIOUR)
+    folders = {"kit": tmp_path / "kit-files", "other": tmp_path / "other-files"}
+    for folder in folders.values():
+        folder.mkdir()
+    env = kit_env(code, python) | {"HOME": str(home)}
+    done = subprocess.run([str(python), str(code / "hwtools" / "probe.py"), str(folders["kit"]), str(folders["other"])],
+                          capture_output=True, text=True, timeout=120, cwd=code, env=env)
+    assert done.returncode == 0, done.stderr[-3000:]
+    said = json.loads(done.stdout)
+    plain = {"setrlimit RLIMIT_AS 1 GiB": "None", "setrlimit RLIMIT_CPU 600 s": "None", "start method": "fork",
+             "a child's piped Ł": "0", "a UTF-8 child's piped Ł": repr("Ł\n".encode()), "open() encoding": "'UTF-8'",
+             "remove a held file": "None", "write in home": "None", "SIGINT in a wait": "short"}
+    for side in ("kit", "other"):
+        expected = plain | {name: value.format(folder=folders[side], home=home) for name, value in EXPECTED[system][side].items()}
+        assert said[side] == expected, side
+
+
+def test_a_test_over_its_limit_fails_alone_and_the_run_ends_with_its_summary_on_windows(tmp_path):
+    """Issue 39 problem 10: Windows has no SIGALRM, so pytest-timeout's thread method ends the whole run (no
+    summary); the edition's own plugin (``hwtools/pytest_overrun.py``, registered by the kit's conftest.py) stops
+    such a test first, and the run goes on to its summary. Made to fail once: without the plugin the Windows
+    profile's run ended at pytest-timeout's "Timeout" banner, with no summary line."""
+    python = student_python(tmp_path / "venv", system="windows")
+    project = tmp_path / "edition"
+    project.mkdir()
+    (project / "conftest.py").write_text('pytest_plugins = ("hwtools.pytest_todo", "hwtools.pytest_overrun")\n')
+    (project / "test_loop.py").write_text("import pytest\n\n\n@pytest.mark.timeout(8)\ndef test_loops():\n    while True:\n"
+                                          "        pass\n\n\ndef test_after():\n    assert True\n")
+    env = kit_env(Path(__file__).resolve().parents[2], python)  # the kit's hwtools on the path, as the edition's own
+    done = subprocess.run([str(python), "-m", "pytest", "-q", "-p", "no:cacheprovider", "test_loop.py"], cwd=project,
+                          env=env, capture_output=True, encoding="cp1252", errors="replace", timeout=120)
+    lines = done.stdout.strip().splitlines()
+    assert re.fullmatch(r"1 failed, 1 passed in .*", lines[-1]), done.stdout[-2000:] + done.stderr[-2000:]
+    assert "test_loop.py::test_loops ran over its time limit of 8 s and was stopped" in done.stdout

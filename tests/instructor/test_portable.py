@@ -10,6 +10,8 @@ that catches ImportError. (The whole student path, run with these taken away, is
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -138,3 +140,33 @@ def test_the_check_sees_an_unguarded_use(code):
 ])
 def test_a_platform_branch_is_a_guard(code):
     assert unguarded(code) == []
+
+
+def test_every_limit_goes_through_one_helper_that_takes_a_refusal_as_no_limit(monkeypatch):
+    """Issue 39.1: the student's side sets resource limits only through ``set_limit`` (the grader's own and the
+    worker's), and where the system refuses one (macOS: a finite RLIMIT_AS, ``ValueError``), has no such limit
+    or no ``resource`` module (Windows), the helper says so by returning None and nothing else happens. Made to
+    fail once: e0973d3's ``limit_own_memory`` raised ``ValueError: current limit exceeds maximum limit``."""
+    import resource
+
+    from hwtools.grade import sandbox
+    from hwtools.grade.in_sandbox import worker
+
+    shipped = {name: data.decode("utf-8") for name, (data, _) in student_files(REPO).items() if name.endswith(".py")}
+    setters = sorted(name for name, text in shipped.items() if "setrlimit(" in text)
+    assert setters == ["hwtools/grade/in_sandbox/worker.py"], setters  # the helper's file, nowhere else
+    code = ("import resource\nfrom hwtools.grade.in_sandbox.worker import set_limit\n"
+            "soft, hard = resource.getrlimit(resource.RLIMIT_AS)\n"
+            "print(set_limit('RLIMIT_AS', 2**42, hard=False), set_limit('RLIMIT_AS', 2**43, hard=False),"
+            " resource.getrlimit(resource.RLIMIT_AS)[1] == hard, set_limit('RLIMIT_CPU', 600), set_limit('RLIMIT_NONE', 1))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60, cwd=REPO)
+    assert done.stdout.split() == [str(2**42), str(2**42), "True", "600", "None"], done.stderr
+
+    def refuse(which, limits):
+        raise ValueError("current limit exceeds maximum limit")
+
+    monkeypatch.setattr(resource, "setrlimit", refuse)
+    assert worker.set_limit("RLIMIT_AS", 2**30) is None and sandbox.limit_own_memory() is None
+    worker._set_limits(60, 2**30)  # the worker goes on without them
+    monkeypatch.setitem(sys.modules, "resource", None)  # Windows
+    assert worker.set_limit("RLIMIT_CPU", 60) is None

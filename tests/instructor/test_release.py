@@ -19,6 +19,7 @@ import pytest
 
 import editions
 from doc_mentions import Kit, missing
+from day_one import versions_tested
 from instructor.release import (
     ANSWER_KEY,
     INSTRUCTOR_ONLY,
@@ -88,14 +89,16 @@ def test_instructor_files_are_left_out_and_the_rest_is_there(edition):
 
 def test_the_editions_requirements_are_the_kits_without_the_instructors_own(edition):
     """Issue 32.3: the edition installs what the student's side runs; a requirement whose comment
-    says "Instructor's kit only:" (the test command's -n 2) stays with the instructor."""
+    says "Instructor's kit only:" (the test command's -n 2, the similarity report's copydetect) stays
+    with the instructor."""
     def requirements(text):
         return [line.split(">")[0].split("=")[0] for line in text.splitlines() if line.strip() and not line.startswith("#")]
 
     kit = requirements((REPO / "requirements.txt").read_text())
     students = requirements((edition / "requirements.txt").read_text())
-    assert "pytest-xdist" in kit and "pytest-xdist" not in students
-    assert students == [name for name in kit if name != "pytest-xdist"]
+    instructors = ("pytest-xdist", "copydetect")
+    assert set(instructors) <= set(kit) and not set(instructors) & set(students)
+    assert students == [name for name in kit if name not in instructors]
     assert "Instructor's kit only" not in (edition / "requirements.txt").read_text()
 
 
@@ -254,7 +257,11 @@ def test_the_student_readme_installs_with_the_editions_files_on_macos_linux_wind
     scripts = {label: sysconfig.get_paths(scheme, vars={"base": ".venv", "platbase": ".venv"})["scripts"] + "/"
                for label, scheme in (("macOS", "posix_prefix"), ("Windows", "nt"))}
     scripts["Windows"] = scripts["Windows"].replace("/", "\\")
-    first = {"macOS": ["python3", "-m", "venv", ".venv"], "Windows": ["py", "-m", "venv", ".venv"], "conda": ["conda", "create"]}
+    tested = versions_tested()  # the Windows line picks one of them (py -3.12): py alone takes the newest installed
+    first = {"macOS": ["python3", "-m", "venv", ".venv"], "Windows": ["py", f"-{variants['Windows'][0][1][1:]}", "-m",
+                                                                    "venv", ".venv"], "conda": ["conda", "create"]}
+    assert variants["Windows"][0][1][1:] in tested, variants["Windows"][0]
+    assert f"Python {tested[0]} to {tested[-1]}" in readme  # the tested versions, as pyproject.toml states them
     for label, lines in variants.items():
         words = [word for line in lines for word in line]
         assert lines[0][:len(first[label])] == first[label], (label, lines[0])

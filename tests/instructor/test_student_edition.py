@@ -190,7 +190,7 @@ def test_one_command_checks_and_hands_in_the_zip(python, natural_kit):
     zip_path = natural_kit / "handin" / "alovelac.zip"
     assert "finds the code of every TODO" in result.stdout and "every visible check passes" in result.stdout
     assert "training with your LEARNING_RATE converges" in result.stdout and "not done yet" not in result.stdout
-    assert "Hand in alovelac.zip on Canvas." in result.stdout
+    assert "Hand in handin/alovelac.zip on Canvas." in result.stdout
     with zipfile.ZipFile(zip_path) as archive:
         names = archive.namelist()
     assert names == sorted(names) and all(name.startswith(("hwlib/", "notebooks/")) for name in names)

@@ -29,6 +29,7 @@ one is complete.
 from __future__ import annotations
 
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -38,8 +39,11 @@ from pathlib import Path
 
 import pytest
 
-from day_one import kit_env, student_python
-from hwtools import handin, markers
+from day_one import find_python, interrupt_a_check, kit_env, run_cells, student_python, versions_tested
+import foreign_os
+from hwtools import files, handin, markers
+from hwtools.check_cell import check_lines
+from hwtools.report import words
 from hwtools.not_done import untouched_todos
 from hwtools.grade import AUTO_POINTS, blocks, submissions
 from hwtools.grade.instructor import classroom
@@ -48,6 +52,7 @@ from instructor.release import ReleaseError, kit_files, student_files
 
 KIT = Path(__file__).resolve().parents[2]
 P1 = "notebooks/p1_cartpole_finite_difference.ipynb"
+P2 = "notebooks/p2_food_cutting_logistic_regression.ipynb"
 LEFTOVERS = ("hwlib/.ipynb_checkpoints/cartpole-checkpoint.py", f"notebooks/.ipynb_checkpoints/{Path(P1).stem}-checkpoint.ipynb",
              "hwlib/logreg.py~", "hwlib/.finite_diff.py.swp")
 EDITION_TESTS_SECONDS = 1500  # the edition's whole pytest: about 2.5 min at load 3-6 on 2 cores
@@ -76,15 +81,25 @@ def fill(kit):
 
 
 def run(python, kit, *args, timeout):
-    return subprocess.run([str(python), *args], cwd=kit, env=kit_env(kit, python), capture_output=True, text=True,
-                          timeout=timeout)
+    """``python *args`` in ``kit``; its output decoded as the system's code page writes it where it is not told
+    otherwise (the Windows profile: cp1252)."""
+    encoding = "cp1252" if (Path(python).parent.parent / "windows").exists() else "utf-8"
+    return subprocess.run([str(python), *args], cwd=kit, env=kit_env(kit, python), capture_output=True,
+                          encoding=encoding, errors="replace", timeout=timeout)
+
+
+SYSTEMS = ("windows", "macos", "hub")
+# Each system's student Python: Windows' the newest tested version, macOS's the oldest (a Mac's python.org or
+# Homebrew Python), the hub's this one; where this machine has no such version, this one.
+VERSION_OF = {"windows": -1, "macos": 0}
 
 
 @pytest.fixture(scope="module")
-def path(tmp_path_factory):
-    """(the filled student edition with leftovers, its Python)."""
+def edition(tmp_path_factory):
+    """The filled student edition with leftovers, in a folder named as a student's may be ("Łukasz Zoë/hw1":
+    letters outside Windows' code page), made by the release command."""
     root = tmp_path_factory.mktemp("student-path")
-    kit = root / "student"
+    kit = root / "Łukasz Zoë" / "hw1"
     built = subprocess.run([sys.executable, "-m", "instructor.release", "student", str(kit)], cwd=KIT,
                            capture_output=True, text=True, timeout=600)
     assert built.returncode == 0, built.stderr
@@ -94,9 +109,142 @@ def path(tmp_path_factory):
     for name in ("data.npz", "audio"):  # the course's data, where this kit has it, put where the student puts it
         if (KIT / "data" / name).exists():
             (kit / "data" / name).symlink_to((KIT / "data" / name).resolve())
-    python = student_python(root / "venv", foreign=True)
-    assert run(python, kit, "-c", "import instructor", timeout=120).returncode == 1
-    return kit, python
+    return kit
+
+
+@pytest.fixture(scope="module")
+def pythons(tmp_path_factory):
+    """{system: its student Python, made at first use}: ``foreign_os``'s profile in every process of it."""
+    made, root = {}, tmp_path_factory.mktemp("pythons")
+    versions = versions_tested()
+
+    def python(system):
+        if system not in made:
+            base = find_python(versions[VERSION_OF[system]]) if system in VERSION_OF else None
+            home = root / "hub-home"
+            home.mkdir(exist_ok=True)
+            made[system] = student_python(root / system, system=system, home=home, base=base)
+            (made[system].parent.parent / system).touch()  # which system it is, for run()
+        return made[system]
+
+    return python
+
+
+@pytest.fixture(scope="module")
+def path(edition, pythons):
+    """(the filled student edition with leftovers, the Windows profile's Python: the newest tested version)."""
+    python = pythons("windows")
+    assert run(python, edition, "-c", "import instructor", timeout=120).returncode == 1
+    return edition, python
+
+
+# --------------------------------------------------------------------------------------------
+# The student's path on each system (issue 39): the check cells through a real kernel, an interrupted check,
+# the preview, the sweep (on the oldest Python); the same points and words as on Linux
+# --------------------------------------------------------------------------------------------
+
+
+def stored_output(notebook, source):
+    """What the cell ``source`` of the instructor's ``notebook`` printed when it was stored (on Linux)."""
+    cells = [cell for cell in json.loads((KIT / notebook).read_text(encoding="utf-8"))["cells"]
+             if cell["cell_type"] == "code" and "".join(cell["source"]) == source]
+    assert len(cells) == 1, source
+    return printed(cells[0]["outputs"])
+
+
+def printed(outputs):
+    """The text a cell's outputs show: printed lines and errors (not displays, such as progress bars)."""
+    return "".join(output["text"] if isinstance(output["text"], str) else "".join(output["text"])
+                   for output in outputs if output["output_type"] == "stream") + "".join(
+        f"{output['ename']}: {output['evalue']}" for output in outputs if output["output_type"] == "error")
+
+
+def check_cells():
+    """[(notebook, source)] of every check cell of both notebooks, in order."""
+    found = []
+    for notebook in (P1, P2):
+        for cell in json.loads((KIT / notebook).read_text(encoding="utf-8"))["cells"]:
+            source = "".join(cell["source"])
+            if cell["cell_type"] == "code" and re.fullmatch(r'check\("[\d.]+"\)', source.strip()):
+                found.append((notebook, source))
+    return found
+
+
+def sweep_cells():
+    """[(P1, source)] of the p1 notebook's first cell (its imports) and the learning-rate sweep's cell."""
+    cells = ["".join(cell["source"]) for cell in json.loads((KIT / P1).read_text(encoding="utf-8"))["cells"]
+             if cell["cell_type"] == "code"]
+    return [(P1, cells[0]), (P1, next(source for source in cells if "learning_rate_sweep(" in source))]
+
+
+@pytest.mark.timeout(1800)  # the first use of a Python of another version installs its packages (once a machine)
+@pytest.mark.parametrize("system", SYSTEMS)
+def test_check_cells_in_a_kernel_print_what_they_print_on_linux(edition, pythons, linux_preview, system):
+    """Every check cell, run in a kernel of the system's Python on the filled edition, prints what the same
+    check prints on Linux (``check_lines`` of the Linux preview's entry); on macOS (the oldest Python) the
+    sweep's cell prints what it printed when the instructor's notebooks were stored on Linux. Made to
+    fail once: on the kit of e0973d3 the macOS profile prints "The check could not run: ... ValueError: current
+    limit exceeds maximum limit" (the grader's RLIMIT_AS), the Windows one "... UnicodeEncodeError: 'charmap'
+    codec can't encode character '\\u0141'" (the grader's "Grading <folder>" into a cp1252 pipe), the hub one
+    "... the lock ... ([Errno 30] Read-only file system ...)"."""
+    cells = (sweep_cells() if system == "macos" else []) + check_cells()
+    outputs = run_cells(pythons(system), edition, ["from hwtools.notebook import check"] + [source for _, source in cells])
+    assert outputs[0] == []
+    got = {source: printed(output) for (_, source), output in zip(cells, outputs[1:])}
+    entries = {entry["id"]: entry for entry in linux_preview["result"]["todos"]}
+    expected = {source: "\n".join(check_lines(entries[re.search(r'"(.+)"', source).group(1)])) + "\n"
+                for _, source in check_cells()}  # what the same check prints on Linux
+    assert got == {source: expected.get(source) or stored_output(notebook, source) for notebook, source in cells}
+
+
+def looping(edition, name):
+    """A copy of ``edition`` whose TODO 1.2.1 loops for ever (as a student's may), in a folder beside it."""
+    kit = edition.parent / name
+    shutil.copytree(edition, kit, symlinks=True, ignore=shutil.ignore_patterns("handin"))
+    code = kit / "hwlib" / "finite_diff.py"
+    code.write_text(re.sub(r"(### BEGIN TODO 1\.2\.1\n).*?(\n\s*### END TODO 1\.2\.1)", r"\1    while True:\n        pass\2",
+                           code.read_text(encoding="utf-8"), flags=re.S), encoding="utf-8")
+    return kit
+
+
+@pytest.mark.timeout(1800)
+@pytest.mark.parametrize("system", SYSTEMS)
+def test_kernel_interrupt_ends_a_looping_check_its_grader_and_its_worker(edition, pythons, system):
+    """Kernel > Interrupt while a check runs a TODO that never ends: the cell ends with KeyboardInterrupt at
+    once (within a second on this box, benchmarks/RESULTS.md; asserted with room for a loaded machine, far below
+    the run's wall-clock backstop), and neither the grader nor its worker is left. Made to fail once: on the kit of e0973d3 the Windows
+    profile's cell ended after 190.1 s (the wall-clock backstop: the interrupt did not wake
+    ``communicate(timeout=1800)``), and on Linux and macOS the worker was left looping (the grader was killed,
+    not its worker's session)."""
+    result = interrupt_a_check(pythons(system), looping(edition, f"loop-{system}"), "1.2.1")
+    assert result["status"] == "error" and result["error"] == "KeyboardInterrupt", result
+    assert result["seconds"] < 10 and not result["left"], result
+
+
+def preview(python, kit, out):
+    """{"result": the preview's result, "said": what decides points and words in it: the totals and, per TODO,
+    its status, points, notes, mistake, blame and checks' verdicts}."""
+    done = run(python, kit, "-m", "hwtools.grade", "--json", str(out), timeout=900)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    result = json.loads(out.read_text(encoding="utf-8"))
+    return {"result": result, "said": {"total": result["total"], "todos": [
+        {key: entry.get(key) for key in ("id", "status", "auto_earned", "notes", "mistake", "blame")}
+        | {"checks": [(check["check"], check["passed"]) for check in entry["checks"]]} for entry in result["todos"]]}}
+
+
+@pytest.fixture(scope="module")
+def linux_preview(edition, tmp_path_factory):
+    """The preview of the filled edition with a plain Python of this Linux box."""
+    python = student_python(tmp_path_factory.mktemp("linux") / "venv")
+    return preview(python, edition, tmp_path_factory.mktemp("linux-preview") / "preview.json")
+
+
+@pytest.mark.timeout(1800)
+@pytest.mark.parametrize("system", SYSTEMS)
+def test_the_preview_gives_every_point_with_the_words_it_gives_on_linux(edition, pythons, linux_preview, system, tmp_path):
+    said = preview(pythons(system), edition, tmp_path / "preview.json")["said"]
+    assert said["total"]["auto_earned"] == AUTO_POINTS
+    assert said == linux_preview["said"]
 
 
 @pytest.mark.timeout(EDITION_TESTS_SECONDS + 60)
@@ -258,21 +406,32 @@ def test_the_release_leaves_the_leftovers_out_and_refuses_a_tracked_one(kit_with
 # --------------------------------------------------------------------------------------------
 
 
+def fake_report(numbers="1"):
+    """A stand-in for the report command (``handin.build_report``): the files it writes, answers.tex under its
+    stamp with ``numbers`` in it, and answers.pdf naming the --name it was given."""
+    def report(kit, folder, name):
+        folder.mkdir(parents=True)
+        (folder / "answers.pdf").write_bytes(f"%PDF {name} {numbers}".encode())
+        (folder / "p1_training_curve.pdf").write_bytes(f"%PDF figure {numbers}".encode())
+        words.write_answers(folder, ANSWERS.format(numbers=numbers))
+        return folder / "answers.pdf"
+
+    return report
+
+
+ANSWERS = "\\section*{{1.3.3}}\n% Your words: how you chose the rate.\n\nrate: {numbers}\n\\end{{document}}\n"
+
+
 def test_a_report_replaces_the_previous_one_only_once_complete(tmp_path, monkeypatch):
     said = []
     out_dir = tmp_path / "handin"
     out_dir.mkdir()
-
-    def report(kit, folder, name):
-        folder.mkdir(parents=True)
-        (folder / "answers.pdf").write_bytes(f"%PDF {name}".encode())
-        return folder / "answers.pdf"
-
-    monkeypatch.setattr(handin, "build_report", report)
+    monkeypatch.setattr(handin, "build_report", fake_report())
     first = handin.write_report(tmp_path, out_dir, "alovelac", "Ada", said.append)
-    assert first.read_bytes() == b"%PDF Ada / alovelac" and not said
+    assert first == out_dir / "alovelac.pdf" and first.read_bytes() == b"%PDF Ada / alovelac 1" and not said
+    assert not (out_dir / "report" / "answers.pdf").exists()  # one there is the student's own, from answers.tex
     handin.write_report(tmp_path, out_dir, "alovelac", "Ada L.", said.append)
-    assert (out_dir / "alovelac.pdf").read_bytes() == b"%PDF Ada L. / alovelac"
+    assert (out_dir / "alovelac.pdf").read_bytes() == b"%PDF Ada L. / alovelac 1"
     assert len(said) == 1 and "replaces the previous report" in said[0]
 
     def failing(kit, folder, name):
@@ -284,29 +443,100 @@ def test_a_report_replaces_the_previous_one_only_once_complete(tmp_path, monkeyp
     with pytest.raises(handin.HandinError, match=r"not done yet\nYour previous report in .* is kept as it was"):
         handin.write_report(tmp_path, out_dir, "alovelac", "Ada", said.append)
     assert sorted(path.name for path in out_dir.iterdir()) == ["alovelac.pdf", "report"]
-    assert (out_dir / "report" / "answers.pdf").read_bytes() == b"%PDF Ada L. / alovelac"
+    assert (out_dir / "alovelac.pdf").read_bytes() == b"%PDF Ada L. / alovelac 1"
 
 
-def test_a_report_without_a_pdf_is_kept_and_says_how_to_make_one(tmp_path, monkeypatch):
-    """Where no browser prints answers.pdf (the report says how to make it and writes the rest), hand-in puts
-    that report in place, removes the PDF of an earlier one and says the same; the zip is written first."""
+def test_the_students_words_and_files_survive_every_later_report(tmp_path, monkeypatch):
+    """Issue 39.2: the words written in handin/report/answers.tex, and a file of the student's beside it, survive a
+    later hand-in's report; a PDF they compiled from it since is what the hand-in names for upload; one older
+    than their answers.tex is said to be so."""
     said = []
-    out_dir = tmp_path / "handin"
-    out_dir.mkdir()
-    (out_dir / "alovelac.pdf").write_bytes(b"%PDF an earlier report")
-
-    def report(kit, folder, name):
-        folder.mkdir(parents=True)
-        (folder / "answers.tex").write_text(name)
-        return None
-
-    monkeypatch.setattr(handin, "build_report", report)
+    out_dir, report_dir = tmp_path / "handin", tmp_path / "handin" / "report"
     monkeypatch.setattr(handin, "checked_zip", lambda kit, andrew_id: (b"zip", ["hwlib/cartpole.py"]))
     monkeypatch.setattr(handin, "visible_checks", lambda kit, say: [])
+    monkeypatch.setattr(handin, "build_report", fake_report("1"))
     result = handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=said.append)
-    assert result == {"zip": out_dir / "alovelac.zip", "pdf": None, "failing": []}
-    assert sorted(path.name for path in out_dir.iterdir()) == ["alovelac.zip", "report"]
-    assert (out_dir / "report" / "answers.tex").read_text() == "alovelac"
-    words = "\n".join(said)
-    assert f"{out_dir / 'report'}: the report without its PDF" in words and "set HWLIB_CHROMIUM" in words, words
-    assert "Hand in alovelac.zip on Canvas and the report's PDF on Gradescope." in words
+    assert result["pdf"] == out_dir / "alovelac.pdf" and said[-1].startswith(
+        "Hand in handin/alovelac.zip on Canvas and handin/alovelac.pdf on Gradescope.")
+    tex = report_dir / "answers.tex"
+    tex.write_text(tex.read_text().replace("the rate.\n", "the rate.\nBy the sweep: Łukasz's way.\n"), encoding="utf-8")
+    (report_dir / "sketch.png").write_bytes(b"my own figure")
+    os.utime(tex, (tex.stat().st_mtime - 10,) * 2)
+    (report_dir / "answers.pdf").write_bytes(b"%PDF compiled by pdflatex, with my words")  # newer than answers.tex
+    said.clear()
+    result = handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, report=False, say=said.append)
+    assert (out_dir / "alovelac.pdf").read_bytes() == b"%PDF compiled by pdflatex, with my words"
+    assert result["pdf"] == out_dir / "alovelac.pdf" and "and handin/alovelac.pdf on Gradescope" in said[-1]
+    said.clear()
+    monkeypatch.setattr(handin, "build_report", fake_report("2"))
+    result = handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=said.append)
+    assert tex.read_text(encoding="utf-8").split("\n", 1)[1] == ANSWERS.format(numbers="2").replace(
+        "the rate.\n", "the rate.\nBy the sweep: Łukasz's way.\n")
+    assert (report_dir / "sketch.png").read_bytes() == b"my own figure"
+    assert (report_dir / "p1_training_curve.pdf").read_bytes() == b"%PDF figure 2"
+    text = "\n".join(said)
+    assert "your words are kept in the new answers.tex" in text, text
+    assert result["pdf"] is None and "answers.pdf there is older than your answers.tex" in text, text
+    assert "pdflatex answers.tex" in text and "once made, the report's PDF on Gradescope" in said[-1]
+    assert sorted(path.name for path in out_dir.iterdir()) == ["alovelac.pdf", "alovelac.zip", "report"]
+
+
+@pytest.mark.parametrize("held", ["alovelac.pdf", "report/answers.tex", "report/answers.pdf", "alovelac.zip"])
+def test_a_file_held_open_keeps_the_old_hand_in_whole_and_is_named(tmp_path, monkeypatch, held):
+    """Windows refuses to remove, rename or replace a file another program holds open (a PDF viewer, an editor;
+    foreign_os's lock shim does so here): the hand-in then keeps the old report and PDF whole, says which file is
+    held and by what kind of program, and leaves nothing half made; once it is closed, the hand-in goes through."""
+    for (module, name), shim in foreign_os.lock_shim().items():
+        monkeypatch.setattr(module, name, shim)
+    monkeypatch.setattr(handin, "checked_zip", lambda kit, andrew_id: (b"zip 2", ["hwlib/cartpole.py"]))
+    monkeypatch.setattr(handin, "visible_checks", lambda kit, say: [])
+    monkeypatch.setattr(files, "RETRY_SECONDS", 0.2)
+    out_dir = tmp_path / "handin"
+    monkeypatch.setattr(handin, "build_report", fake_report("1"))
+    handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=lambda line: None)
+    (out_dir / "report" / "answers.pdf").write_bytes(b"%PDF mine")
+    (out_dir / "alovelac.zip").write_bytes(b"zip 1")
+    before = {path.relative_to(out_dir).as_posix(): path.read_bytes() for path in out_dir.rglob("*") if path.is_file()}
+    monkeypatch.setattr(handin, "build_report", fake_report("2"))
+    with open(out_dir / held, "rb"):  # noqa: PTH123 - a viewer holding it
+        with pytest.raises(handin.HandinError) as raised:
+            handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=lambda line: None)
+    kind = {"pdf": "a PDF viewer", "tex": "an editor", "zip": "File Explorer"}[held.rpartition(".")[2]]
+    assert f"{out_dir / held} is open in another program, probably {kind}" in str(raised.value), raised.value
+    after = {path.relative_to(out_dir).as_posix(): path.read_bytes() for path in out_dir.rglob("*") if path.is_file()}
+    assert after == before
+    handin.handin("alovelac", kit=tmp_path, out_dir=out_dir, say=lambda line: None)
+    assert (out_dir / "alovelac.zip").read_bytes() == b"zip 2" and b"rate: 2" in (out_dir / "report/answers.tex").read_bytes()
+
+
+@pytest.mark.parametrize("held", ["alovelac.pdf", "report/answers.pdf", "report/p1_training_curve.pdf"])
+def test_a_file_opened_while_the_report_builds_keeps_the_old_report_whole(tmp_path, monkeypatch, held):
+    """The same where the file is opened while the new report is built: the new one is not put in place, the old
+    report and its PDF stay as they were, and nothing is left half made."""
+    for (module, name), shim in foreign_os.lock_shim().items():
+        monkeypatch.setattr(module, name, shim)
+    monkeypatch.setattr(files, "RETRY_SECONDS", 0.2)
+    out_dir = tmp_path / "handin"
+    out_dir.mkdir()
+    monkeypatch.setattr(handin, "build_report", fake_report("1"))
+    handin.write_report(tmp_path, out_dir, "alovelac", "Ada", lambda line: None)
+    (out_dir / "report" / "answers.pdf").write_bytes(b"%PDF mine")
+    before = {path.relative_to(out_dir).as_posix(): path.read_bytes() for path in out_dir.rglob("*") if path.is_file()}
+    viewer = []
+
+    def report_while_opened(kit, folder, name):
+        viewer.append(open(out_dir / held, "rb"))  # noqa: PTH123, SIM115 - a viewer opening it meanwhile
+        return fake_report("2")(kit, folder, name)
+
+    monkeypatch.setattr(handin, "build_report", report_while_opened)
+    try:
+        with pytest.raises(handin.HandinError) as raised:
+            handin.write_report(tmp_path, out_dir, "alovelac", "Ada", lambda line: None)
+    finally:
+        viewer[0].close()
+    assert f"{out_dir / held} is open in another program, probably a PDF viewer" in str(raised.value), raised.value
+    assert "your previous report" in str(raised.value) and "is kept whole" in str(raised.value)
+    after = {path.relative_to(out_dir).as_posix(): path.read_bytes() for path in out_dir.rglob("*") if path.is_file()}
+    assert after == before
+
+

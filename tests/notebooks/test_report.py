@@ -16,6 +16,7 @@ import re
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -27,10 +28,13 @@ from hwlib import settings
 from hwlib.cartpole import CartPoleLinearPolicy, run_policy
 from hwlib.plots.training import PRINT_WIDTH
 from hwtools import report
-from hwtools.report import chromium
+from hwtools.report import chromium, words
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 REPORT_TIMEOUT = 900  # seconds; the run takes about a minute on 2 cores
+# The first test that reads the report also waits for its module fixture: an edition, a student's Python (the first
+# time on a machine, its packages: ``day_one.packages_of``) and the report itself.
+pytestmark = pytest.mark.timeout(REPORT_TIMEOUT + 600)
 STUDENT_NAME = "Ada Lovelace / alovelac"
 TOP = float(settings.MAX_EPISODE_STEPS)  # the best episode reward
 
@@ -182,6 +186,41 @@ def test_local_fonts_are_embedded_and_missing_ones_dropped(tmp_path):
     assert "url(data:,)" in embedded and "file:" not in embedded
 
 
+def test_a_file_url_becomes_the_systems_path_drive_letter_and_letters_kept(monkeypatch):
+    """The fonts of a page typeset on Windows: ``file:///C:/Users/...`` is ``C:\\Users\\...`` there
+    (``url2pathname``, Windows' own: ``nturl2path``), not ``/C:/Users/...``, which names no file. Made to fail once:
+    the kit of e0973d3 cut the scheme (``Path(unquote(urlparse(url).path))``) and got ``\\C:\\Users\\...``."""
+    import nturl2path
+    from pathlib import PureWindowsPath
+
+    monkeypatch.setattr(chromium, "url2pathname", nturl2path.url2pathname)
+    monkeypatch.setattr(chromium, "Path", PureWindowsPath)
+    url = "file:///C:/Users/%C5%81ukasz%20Zo%C3%AB/hw1/.venv/Lib/site-packages/x/MathJax_Main-Regular.woff"
+    path = chromium.file_path(url)
+    assert path == PureWindowsPath(r"C:\Users\Łukasz Zoë\hw1\.venv\Lib\site-packages\x\MathJax_Main-Regular.woff")
+    assert path.drive == "C:"
+    assert chromium.file_path(PureWindowsPath(r"C:\Users\Łukasz Zoë\f.woff").as_uri()) == PureWindowsPath(
+        r"C:\Users\Łukasz Zoë\f.woff")
+    monkeypatch.undo()
+    assert report.embed_local_fonts(f"url('{Path('/no/such/Łukasz Zoë/f.woff').as_uri()}')") == "url(data:,)"
+
+
+def test_the_report_gives_the_browser_pages_in_its_own_folder_not_the_systems_tmp(tmp_path, monkeypatch):
+    """Ubuntu's Chromium is a snap with a /tmp of its own: the pages it typesets, and its profile, are in the
+    report's folder, never under the system's temporary folder. Made to fail once: e0973d3 wrote them to
+    /tmp/hwtools-report-*."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "system-tmp"))
+    (tmp_path / "system-tmp").mkdir()
+    import hwtools.report.command as command
+
+    monkeypatch.setattr(command, "chromium_path", lambda: Path("/usr/bin/chromium"))  # the pages go to the scratch folder
+    monkeypatch.setattr(command, "_run_notebooks", lambda notebooks, tmp, step: (_ for _ in ()).throw(RuntimeError(str(tmp))))
+    with pytest.raises(RuntimeError) as raised:
+        report.build_report(tmp_path / "handin" / "report", progress=lambda line: None)
+    scratch = Path(str(raised.value))
+    assert scratch.parent == tmp_path / "handin" / "report" and not scratch.is_relative_to(tmp_path / "system-tmp")
+
+
 def _program(path):
     """A stand-in browser at ``path``: an executable file."""
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -310,17 +349,28 @@ def test_answers_tex_sets_whatever_a_student_writes(tmp_path):
     assert f"{tricky} (0.1, -0.2, -1, -0.3)" in words
 
 
-def test_an_edited_answers_tex_is_kept_when_the_report_runs_again(tmp_path):
-    first, kept = report.write_answers_tex(tmp_path, "\\documentclass{article}\n% Your words:\n")
-    assert kept is None
-    assert report.write_answers_tex(tmp_path, "version 2\n") == (first, None)  # not edited: simply rewritten
-    first.write_text(first.read_text() + "My own words.\n")
-    again, kept = report.write_answers_tex(tmp_path, "version 3\n")
-    assert kept == tmp_path / "answers.edited.tex" and kept.read_text().endswith("version 2\nMy own words.\n")
-    assert again.read_text().endswith("\nversion 3\n")
-    again.write_text("edited again")
-    assert report.write_answers_tex(tmp_path, "version 4\n")[1] == tmp_path / "answers.edited-2.tex"
-    assert (tmp_path / "answers.edited.tex").read_text().endswith("My own words.\n")
+def test_an_edited_answers_tex_keeps_its_words_when_the_report_runs_again(tmp_path):
+    """The student's words are carried into the new answers.tex (the numbers are the new report's); where they
+    changed a line the new report changes too, their file stays as it is and the new text is answers.new.tex."""
+    template = "\\section{{1.3.3}}\n% Your words: the rate.\n\nrate: {rate}\n\\section{{2.3.2}}\n% Your words: the curve.\n\nacc: {acc}\n"
+    first, note = report.write_answers_tex(tmp_path, template.format(rate=1, acc=0.5))
+    assert note is None and not words.has_words(tmp_path)
+    assert report.write_answers_tex(tmp_path, template.format(rate=2, acc=0.5)) == (first, None)  # no words: rewritten
+    text = first.read_text()
+    first.write_text(text.replace("% Your words: the rate.\n", "% Your words: the rate.\nI chose it by the sweep.\n")
+                     .replace("the curve.\n\n", "the curve.\n\nIt rises fast.\n\n"))
+    again, note = report.write_answers_tex(tmp_path, template.format(rate=3, acc=0.9))
+    assert "your words are kept" in note and words.has_words(tmp_path)
+    assert again.read_text().split("\n", 1)[1] == (template.format(rate=3, acc=0.9)
+                                                   .replace("the rate.\n", "the rate.\nI chose it by the sweep.\n")
+                                                   .replace("the curve.\n\n", "the curve.\n\nIt rises fast.\n\n"))
+    mine = again.read_text().replace("rate: 3", "rate: 3 (my own)")
+    again.write_text(mine)
+    _, note = report.write_answers_tex(tmp_path, template.format(rate=4, acc=0.9))
+    assert "kept as you wrote it" in note and again.read_text() == mine
+    assert (tmp_path / "answers.new.tex").read_text().endswith(template.format(rate=4, acc=0.9))
+    _, note = report.write_answers_tex(tmp_path, template.format(rate=5, acc=0.9))  # again: still theirs, new text beside
+    assert again.read_text() == mine and (tmp_path / "answers.new.tex").read_text().endswith("rate: 5\n" + template.split("rate: {rate}\n")[1].format(acc=0.9))
 
 
 def test_without_pandoc_the_derivation_is_kept_as_the_markdown_written(monkeypatch):
@@ -340,21 +390,25 @@ def test_without_pandoc_the_derivation_is_kept_as_the_markdown_written(monkeypat
 @pytest.fixture(scope="module")
 def report_run(tmp_path_factory):
     """Run the command as a student would (the hand-in runs it too: ``hwtools.handin.build_report``): in a
-    student edition whose every TODO is done, with a Python like a student's, from another folder, into a
-    folder that does not exist yet."""
+    student edition whose every TODO is done, in a folder named as a student's may be ("Łukasz Zoë/hw1"), with a
+    Python like a student's on Windows (the newest tested version where this machine has it, and every process
+    of it as Windows does: ``foreign_os``), from another folder, into the folder where the hand-in puts it
+    (``handin/report``, which does not exist yet). Its output is read as Windows writes a pipe (cp1252)."""
     import editions
-    from day_one import kit_env, student_python
+    from day_one import find_python, kit_env, student_python, versions_tested
 
     from hwtools.todos import TODO_BY_ID
 
-    edition = editions.build(tmp_path_factory.mktemp("edition") / "kit", tmp_path_factory, keep=frozenset(TODO_BY_ID))
-    python = student_python(tmp_path_factory.mktemp("venv") / "venv")
-    out_dir = tmp_path_factory.mktemp("report") / "homework1-report"
+    edition = editions.build(tmp_path_factory.mktemp("edition") / "Łukasz Zoë" / "hw1", tmp_path_factory,
+                             keep=frozenset(TODO_BY_ID))
+    python = student_python(tmp_path_factory.mktemp("venv") / "venv", system="windows",
+                            base=find_python(versions_tested()[-1]))
+    out_dir = edition / "handin" / "report"
     command = [str(python), "-m", "hwtools.report", str(out_dir), "--name", STUDENT_NAME]
-    done = subprocess.run(command, capture_output=True, text=True, timeout=REPORT_TIMEOUT, env=kit_env(edition, python),
-                          cwd=tmp_path_factory.getbasetemp())
+    done = subprocess.run(command, capture_output=True, encoding="cp1252", errors="replace", timeout=REPORT_TIMEOUT,
+                          env=kit_env(edition, python), cwd=tmp_path_factory.getbasetemp())
     assert done.returncode == 0, f"the report failed:\n{done.stdout}\n{done.stderr}"
-    return out_dir, done.stdout
+    return out_dir, done.stdout, edition, python
 
 
 @pytest.fixture(scope="module")
@@ -382,7 +436,7 @@ def printed(out_dir):
 
 @pytest.fixture(scope="module")
 def pdf(report_run):
-    out_dir, stdout = report_run
+    out_dir, stdout = report_run[:2]
     if report.chromium_path() is None:
         if os.environ.get("CI") == "true":
             pytest.fail("Chromium is missing in CI, so answers.pdf was not printed (.ci/run installs Debian's chromium)")
@@ -399,7 +453,7 @@ def pdf(report_run):
 
 
 def test_progress_says_what_was_read_from_each_kernel(report_run):
-    _, stdout = report_run
+    stdout = report_run[1]
     for index, name in enumerate(report.NOTEBOOKS, start=1):
         assert f"notebook {index}/2: executing {name}" in stdout
         assert f"read {', '.join(report.NOTEBOOK_VARIABLES[name])} from its kernel" in stdout
@@ -685,3 +739,52 @@ def test_latex_typesets_the_students_derivation(latex):
     squashed = re.sub(r"[\s-]", "", text)  # LaTeX breaks words at line ends; compare the letters
     missing = [piece for piece in pieces if re.sub(r"[\s-]", "", piece) not in squashed]
     assert not missing, f"not in answers.tex: {missing}"
+
+
+# --- the student's words through later hand-ins (this test changes the report's folder: it runs last) ------------
+
+
+def _hand_in(report_run, *options):
+    _, _, edition, python = report_run
+    from day_one import kit_env
+
+    done = subprocess.run([str(python), "-m", "hwtools.handin", "alovelac", "--name", "Ada Lovelace", *options],
+                          capture_output=True, encoding="cp1252", errors="replace", timeout=REPORT_TIMEOUT,
+                          env=kit_env(edition, python), cwd=edition)
+    assert done.returncode == 0, f"the hand-in failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+    return done.stdout.strip().splitlines()
+
+
+@pytest.mark.timeout(3 * REPORT_TIMEOUT)
+def test_later_hand_ins_keep_the_students_words_and_name_the_pdf_to_upload(report_run):
+    """Issue 39.2, on the Windows profile in "Łukasz Zoë/hw1": the student writes words at the "% Your words" lines
+    of handin/report/answers.tex and compiles it there with pdflatex; a hand-in then names that PDF for upload (as
+    handin/alovelac.pdf). They write more, and hand in again with a new report: their words are in its new
+    answers.tex, the new report's numbers around them, and the hand-in says their PDF is older than their
+    answers.tex; compiled again, the PDF holds every word. (e0973d3's hand-in loses the words: its unit-level twin,
+    test_student_path's ``test_the_students_words_and_files_survive_every_later_report``, failed there.)"""
+    _latex_tools()
+    out_dir, _, edition, _ = report_run
+    tex = out_dir / report.ANSWERS_TEX
+    mine = ["My first words: the sweep shows every seed converging at the rate I chose.",
+            "My second words: the confusion matrix mixes up only two foods."]
+    text = tex.read_text(encoding="utf-8")
+    comments = re.findall(r"^% Your words:.*$", text, flags=re.M)
+    text = text.replace(comments[0], f"{comments[0]}\n{mine[0]}", 1)
+    tex.write_text(text, encoding="utf-8")
+    pages, _ = _compile_latex(out_dir, out_dir)
+    assert mine[0] in _words(" ".join(pages))
+    said = _hand_in(report_run, "--no-report")
+    upload = edition / "handin" / "alovelac.pdf"
+    assert upload.read_bytes() == (out_dir / report.ANSWERS_PDF).read_bytes()
+    assert said[-1].startswith("Hand in ") and "alovelac.pdf on Gradescope." in said[-1], said[-3:]
+    tex.write_text(tex.read_text(encoding="utf-8").replace(comments[-1], f"{comments[-1]}\n{mine[1]}", 1), encoding="utf-8")
+    said = _hand_in(report_run)
+    text = tex.read_text(encoding="utf-8")
+    assert all(words in text for words in mine) and len(re.findall(r"^% Your words:", text, flags=re.M)) == len(comments)
+    assert any("your words are kept in the new answers.tex" in line for line in said), said
+    assert any("answers.pdf there is older than your answers.tex" in line for line in said), said
+    assert "once made, the report's PDF on Gradescope" in said[-1], said[-3:]
+    assert upload.read_bytes().startswith(b"%PDF") and all((out_dir / name).is_file() for name in report.FIGURES)
+    pages, _ = _compile_latex(out_dir, out_dir)
+    assert all(words in _words(" ".join(pages)) for words in mine)

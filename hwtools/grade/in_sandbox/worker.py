@@ -14,17 +14,38 @@ import os
 import sys
 
 
-def _set_limits(cpu_seconds, memory_bytes):
+def set_limit(name, value, hard=True):
+    """Put this process under the resource limit ``name`` (``"RLIMIT_AS"``, ``"RLIMIT_CPU"``, ...) of ``value``,
+    never above the hard limit in force: soft and hard both (``hard``), else the soft limit alone, and only
+    where it is higher. The one way the student's side sets a limit. Returns the soft limit then in force, or
+    None where this system enforces no such limit: no ``resource`` module (Windows), no such limit, or the
+    system refuses it (macOS refuses a finite RLIMIT_AS or RLIMIT_DATA: ``ValueError``, cpython#78783), said
+    by no message: the grader's wall clock still ends a run."""
     try:
         import resource  # noqa: PLC0415
-    except ImportError:  # Windows: no such limits (the grader's wall clock still ends the run)
-        return
+    except ImportError:
+        return None
+    which = getattr(resource, name, None)
+    if which is None:
+        return None
+    try:
+        soft, top = resource.getrlimit(which)
+        value = value if top == resource.RLIM_INFINITY else min(value, top)
+        if hard:
+            resource.setrlimit(which, (value, value))
+            return value
+        if soft == resource.RLIM_INFINITY or soft > value:
+            resource.setrlimit(which, (value, top))
+            soft = value
+        return soft
+    except (ValueError, OSError):
+        return None
 
-    for limit, value in ((resource.RLIMIT_CPU, cpu_seconds), (resource.RLIMIT_AS, memory_bytes)):
+
+def _set_limits(cpu_seconds, memory_bytes):
+    for name, value in (("RLIMIT_CPU", cpu_seconds), ("RLIMIT_AS", memory_bytes)):
         if value:
-            soft, hard = resource.getrlimit(limit)
-            value = value if hard == resource.RLIM_INFINITY else min(value, hard)
-            resource.setrlimit(limit, (value, value))
+            set_limit(name, value)
 
 
 def main(argv):

@@ -14,12 +14,10 @@ results give the same bytes. ``classroom.grade_class`` calls it last.
 
 from __future__ import annotations
 
-import csv
-import io
 from pathlib import Path
 
 from hwtools.grade import checks
-from hwtools.grade.safe_text import printable
+from hwtools.grade.safe_text import csv_text
 
 HEADER = ("kind", "todo", "id", "what", "students", "count", "share")
 
@@ -47,12 +45,7 @@ def rows(results):
 
 
 def table_text(table):
-    out = io.StringIO()
-    writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(HEADER)
-    for row in table:  # every text shown as text: no formula from a student's file (safe_text)
-        writer.writerow([printable(str(cell)) if isinstance(cell, str) else cell for cell in row])
-    return out.getvalue()
+    return csv_text([HEADER, *table])  # every text shown as text: no formula from a student's file
 
 
 def chart(table, path):

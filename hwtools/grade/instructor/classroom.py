@@ -1,6 +1,7 @@
 """Grade a class: a folder of submissions to one gradebook (CSV) and one Markdown feedback file per student.
 
     python -m hwtools.grade SUBMISSIONS_DIR --gradebook grades.csv --feedback FEEDBACK_DIR [--jobs N]
+                            [--roster CANVAS_EXPORT.csv [--assignment "Title (id)"]]
 
 ``SUBMISSIONS_DIR`` holds one folder or one ``.zip`` per student, named by the student's id
 (``alice/``, ``bob.zip``). Each holds the student's ``hwlib/`` (and, if they sent them, the
@@ -11,8 +12,9 @@ without their ``hwlib/`` folder) is read as ``hwlib/``, and a folder whose only 
 
 Nothing in a submission is trusted: ``submissions.py`` reads it (what is copied, what rejects
 it), and the student's code then runs only in the grader's sandbox. This module runs the class:
-it grades the submissions, saves each result, and writes the gradebook (``gradebook.py``) and
-the feedback (``class_feedback.py``), with a progress line (``class_progress.py``).
+it grades the submissions, saves each result, and writes the gradebook (``gradebook.py``), its
+Canvas import (``canvas.py``: with ``--roster``, a row per student of Canvas's own export) and the
+feedback (``class_feedback.py``), with a progress line (``class_progress.py``).
 
 Submissions are read, prepared and judged side by side (``--jobs``, default one per CPU) by ONE
 ``Grader`` (the reference's answers are computed once for the class), their runs of student code
@@ -55,8 +57,10 @@ from hwtools.grade import kits
 from hwtools.grade.instructor import class_summary
 from hwtools.grade.instructor.class_feedback import feedback_markdown
 from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions, is_secret
-from hwtools.grade.instructor.gradebook import StudentResult, canvas_text, gradebook_text, status_of
+from hwtools.grade.instructor.canvas import RosterError, canvas_import, read_roster
+from hwtools.grade.instructor.gradebook import StudentResult, gradebook_text, status_of
 from hwtools.grade.instructor.class_progress import Progress
+from hwtools.grade.safe_text import printable
 from hwtools.grade.submissions import Unusable, file_name, kit_file_names, open_submission
 
 STATE_VERSION = 1
@@ -220,6 +224,7 @@ class ClassReport:
     reused: int = 0
     not_graded: int = 0
     errors: list = field(default_factory=list)
+    canvas: object = None  # the canvas.CanvasImport written beside the gradebook
 
 
 def cpu_count():
@@ -241,15 +246,17 @@ def canvas_file(gradebook):
 
 
 def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, grader=None, progress=None,
-                **grader_options):
+                roster=None, assignment=None, **grader_options):
     """Grade every submission in the folder ``submissions`` against ``reference`` (the instructor's
     kit) and write the gradebook CSV ``gradebook`` and one Markdown file per student in ``feedback``.
 
     ``jobs``: submissions graded side by side (default: one per CPU), their runs too (``sandbox.py``).
     ``grader``: a ``Grader`` to use (its reference answers are computed once, for the whole
     class); else one is made with ``grader_options`` (python, isolation, time_limit,
-    memory_limit). ``progress``: a text stream for the progress line (None: silent). Returns a
-    ``ClassReport``. A submission that cannot be read gets 0 and its reason; the others are graded.
+    memory_limit). ``progress``: a text stream for the progress line (None: silent). ``roster`` (a
+    ``canvas.Roster``, Canvas's own export) and ``assignment`` (its column): what the Canvas import
+    beside the gradebook is written for (``canvas.canvas_import``). Returns a ``ClassReport``. A
+    submission that cannot be read gets 0 and its reason; the others are graded.
     """
     submissions, gradebook, feedback = Path(submissions), Path(gradebook), Path(feedback)
     if not submissions.is_dir():
@@ -264,12 +271,17 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     if grader.reference is None:
         raise GradingError("grading a class needs the instructor's kit as the reference, not an answer key: "
                            "the hidden checks decide points too")
+    try:  # a roster or an assignment the Canvas import cannot use stops here, before anything is graded
+        canvas_import([], roster, assignment)
+    except ValueError as error:
+        raise GradingError(str(error)) from None
     refused = grader.refusal()
     if refused:  # fail closed: no sandbox, no student code
         raise GradingError(refused)
     state = state_folder(gradebook)
     store = StateStore(state, grading_fingerprint(grader))
-    found = find_submissions(submissions, skip=(gradebook, canvas_file(gradebook), feedback, state))
+    skip = (gradebook, canvas_file(gradebook), feedback, state) + ((roster.path,) if roster is not None else ())
+    found = find_submissions(submissions, skip=skip)
     kit_names = kit_file_names(grader.layout)
     meter = Progress(len(found), progress)
     if progress is not None:
@@ -308,7 +320,8 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     meter.close()
     results.sort(key=lambda item: item.student)
     _write_atomically(gradebook, gradebook_text(results))
-    _write_atomically(canvas_file(gradebook), canvas_text(results))  # the same totals for Canvas's import
+    canvas = canvas_import(results, roster, assignment)  # the same totals for Canvas's import
+    _write_atomically(canvas_file(gradebook), canvas.text)
     class_summary.write(results, gradebook)  # beside it: each check's pass rate, each named mistake's count
     feedback.mkdir(parents=True, exist_ok=True)
     for student_result in results:
@@ -317,7 +330,7 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
         except Exception as error:  # noqa: BLE001 - one student's file must not cost the others theirs
             errors.append(f"{student_result.student}: the feedback file could not be written "
                           f"({type(error).__name__}: {error})")
-    report = ClassReport(results, gradebook, feedback, state, errors=errors)
+    report = ClassReport(results, gradebook, feedback, state, errors=errors, canvas=canvas)
     for student_result in results:
         if student_result.result is None:
             report.not_graded += 1
@@ -345,9 +358,14 @@ def main(args, parser):
             parser.error("grading a class needs the instructor's kit: pass --reference KIT_DIR")
         reference = KIT_ROOT
     try:
+        roster = read_roster(args.roster) if args.roster else None
         report = grade_class(args.submission, args.gradebook, args.feedback, reference, jobs=args.jobs,
-                             progress=sys.stderr, python=args.python, isolation=args.isolation,
-                             time_limit=args.time_limit, memory_limit=args.memory_limit * 2**20)
+                             progress=sys.stderr, roster=roster, assignment=args.assignment, python=args.python,
+                             isolation=args.isolation, time_limit=args.time_limit,
+                             memory_limit=args.memory_limit * 2**20)
+    except RosterError as error:
+        print(f"error: --roster {error}", file=sys.stderr)
+        return 2
     except GradingError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -356,7 +374,15 @@ def main(args, parser):
     print(f"{len(report.students)} submission(s): {report.graded_now} graded now, {report.reused} unchanged since "
           f"the saved results, {report.not_graded} not gradable (status in the gradebook)")
     print(f"gradebook: {report.gradebook}")
+    canvas = report.canvas
+    print(f"for Canvas: {canvas_file(report.gradebook)} ({canvas.rows} row(s), column {printable(canvas.assignment)!r}"
+          + (f"; {len(canvas.blank)} roster student(s) without a submission, left blank" if roster else "") + ")")
+    for submission, why in sorted(canvas.not_written.items()):
+        print(f"not in the Canvas import: {printable(submission)}: {printable(why)}", file=sys.stderr)
+    for note in canvas.notes:
+        print(f"note: {printable(note)}")
     print(f"feedback: {report.feedback}/ (one .md per student)")
     for error in report.errors:
         print(f"grader error (not saved; rerun to retry): {error}", file=sys.stderr)
     return 1 if report.errors else 0
+

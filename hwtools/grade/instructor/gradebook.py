@@ -1,17 +1,15 @@
 """The class's gradebook: one CSV row per student (``StudentResult``): status, automatic points per
 TODO, their total, empty columns for the points graded by hand (maxima in the headers), notes; and
-the same automatic totals in the form Canvas's gradebook import reads (``canvas_text``). No
-time stamps: the same results give the same bytes. Every text cell is shown as text (no formula
-from a student's file name) and without control characters."""
+the same automatic totals for Canvas are written by ``canvas.py``. No time stamps: the same results
+give the same bytes. Every cell is written by ``safe_text.csv_text``: shown as text (no formula from a
+student's file name) and without control characters."""
 
 from __future__ import annotations
 
-import csv
-import io
 from dataclasses import dataclass, field
 
 from hwtools.grade.feedback import points
-from hwtools.grade.safe_text import printable
+from hwtools.grade.safe_text import csv_text
 from hwtools.todos import AUTO_POINTS, TODOS
 
 GRADED, NOT_ISOLATED = "graded", "not isolated"
@@ -68,12 +66,6 @@ def gradebook_header():
     return header
 
 
-def _cell(text):
-    """A text cell a spreadsheet shows as text (no formula from a student's file name)."""
-    text = printable(text)
-    return "'" + text if text[:1] in ("=", "+", "-", "@", "\t", "\r") else text
-
-
 def row_notes(student_result):
     notes = []
     if student_result.result:
@@ -83,44 +75,14 @@ def row_notes(student_result):
 
 
 def gradebook_row(student_result):
-    row = [_cell(student_result.student), _cell(student_result.status)]
+    row = [student_result.student, student_result.status]
     row += [points(student_result.auto_points(todo.id)) for todo in TODOS if todo.auto]
     row.append(points(student_result.auto_total))
     row += ["" for todo in TODOS if todo.manual]
-    row.append(_cell(row_notes(student_result)))
+    row.append(row_notes(student_result))
     return row
 
 
 def gradebook_text(student_results):
-    stream = io.StringIO()
-    writer = csv.writer(stream, lineterminator="\n")
-    writer.writerow(gradebook_header())
-    for student_result in sorted(student_results, key=lambda item: item.student):
-        writer.writerow(gradebook_row(student_result))
-    return stream.getvalue()
-
-
-# Canvas's gradebook import (https://community.canvaslms.com/t5/Instructor-Guide/How-do-I-import-grades-in-the-Gradebook/ta-p/807):
-# the first columns are Student, ID, SIS Login ID and Section, in that order; then one column per
-# assignment, named "Name" (a new assignment) or "Name (canvas id)" (an existing one); a second row
-# whose Student cell is "Points Possible" gives each assignment's maximum. Canvas matches a row by
-# ID or SIS Login ID: the kit knows a student by the id that names the submission (the Andrew ID,
-# which is the SIS Login ID), so ID is left empty and Student repeats the id.
-CANVAS_COLUMNS = ("Student", "ID", "SIS Login ID", "Section")
-CANVAS_POINTS_POSSIBLE = "Points Possible"
-CANVAS_ASSIGNMENT = "Homework 1 (automatic points)"
-
-
-def canvas_text(student_results, assignment=CANVAS_ASSIGNMENT):
-    """The automatic totals as a CSV Canvas's gradebook import accepts: ``CANVAS_COLUMNS``, one
-    column ``assignment``, the Points Possible row, one row per student (sorted by id)."""
-    if not isinstance(assignment, str) or not assignment.strip() or "," in assignment or "\n" in assignment:
-        raise ValueError(f"assignment: expected a non-empty one-line column name without commas, got {assignment!r}")
-    stream = io.StringIO()
-    writer = csv.writer(stream, lineterminator="\n")
-    writer.writerow([*CANVAS_COLUMNS, assignment])
-    writer.writerow([CANVAS_POINTS_POSSIBLE, "", "", "", points(AUTO_POINTS)])
-    for student_result in sorted(student_results, key=lambda item: item.student):
-        student = _cell(student_result.student)
-        writer.writerow([student, "", student, "", points(student_result.auto_total)])
-    return stream.getvalue()
+    rows = [gradebook_row(student_result) for student_result in sorted(student_results, key=lambda item: item.student)]
+    return csv_text([gradebook_header(), *rows])
