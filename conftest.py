@@ -12,11 +12,11 @@ os.environ["MPLBACKEND"] = "Agg"
 
 pytest_plugins = ("hwtools.pytest_todo", "hwtools.pytest_overrun")
 
-# The tests that run student code (graders, sandboxes, class runs). Their runs take turns machine-wide
-# (hwtools/grade/sandbox.py: never two at once), so with two test processes each waited for the
-# other's runs about a third of the time; under the README's test command (-n 2 --dist loadfile) one
-# process runs these files, starting with them, and the other everything else
-# (benchmarks/RESULTS.md, the test suite).
+# The tests that run student code (graders, sandboxes, class runs). Under the README's test command
+# (-n 2 --dist loadfile) one process runs these files, starting with them, and the other everything
+# else: measured balanced (benchmarks/RESULTS.md, the test suite) when runs of student code took turns
+# machine-wide. They no longer do (hwtools/grade/sandbox.py: only a grading's own runs take turns); the
+# split stays until another is measured shorter.
 RUN_STUDENT_CODE = "tests/grader/"
 
 

@@ -50,7 +50,28 @@ def make_class(layout, folder, count, tag):
     return folder
 
 
-def bench(layout, workdir, count, jobs, isolation="auto", python=None):
+def own_cpu_group():
+    """As root with cgroup v1: move this process (and so every process it starts) into a cpuacct group
+    of its own; a function giving the CPU seconds that group has used, or None where there is none."""
+    import atexit  # noqa: PLC0415
+    import uuid  # noqa: PLC0415
+
+    group = Path("/sys/fs/cgroup/cpuacct") / f"hwgrade-bench-{uuid.uuid4().hex[:8]}"
+    try:
+        group.mkdir()
+        (group / "cgroup.procs").write_text(str(os.getpid()))
+    except OSError:
+        return None
+
+    def leave():  # back to the group this process came from, and the group removed
+        (group.parent / "cgroup.procs").write_text(str(os.getpid()))
+        group.rmdir()
+
+    atexit.register(leave)
+    return lambda: int((group / "cpuacct.usage").read_text()) / 1e9
+
+
+def bench(layout, workdir, count, jobs, isolation="auto", python=None, cpu=None):
     from bench_grading import private_reference  # noqa: PLC0415 - this folder is on the path when run as a script
 
     # under the user fallback the grader refuses a reference its users can read: a copy only root may enter
@@ -64,12 +85,12 @@ def bench(layout, workdir, count, jobs, isolation="auto", python=None):
     first_seconds = time.perf_counter() - started
     assert report.students[0].auto_total == AUTO_POINTS, report.students[0].status
     folder = make_class(layout, workdir / f"class-{jobs_tag}", count, f"j{jobs_tag}")
-    started = time.perf_counter()
+    started, used = time.perf_counter(), cpu() if cpu else None
     report = classroom.grade_class(folder, workdir / f"class-{jobs_tag}.csv", workdir / f"class-{jobs_tag}-feedback",
                                    grader=grader, jobs=jobs)
-    seconds = time.perf_counter() - started
+    seconds, used = time.perf_counter() - started, cpu() - used if cpu else None
     assert report.graded_now == count and all(s.auto_total == AUTO_POINTS for s in report.students)
-    return grader.sandbox, first_seconds, seconds
+    return grader.sandbox, first_seconds, seconds, used
 
 
 def lying_zip_reading(workdir, entries=600_000):
@@ -119,6 +140,7 @@ def main():
           "(a shared machine: the numbers are noisy)")
     print(f"{'sandbox':<8} {'jobs':>4}  {'first (+reference)':>18}  {f'class of {args.submissions}':>12}  "
           f"{'per submission':>14}  {'estimate for 300':>16}")
+    cpu = own_cpu_group()  # the CPU every process of a class's grading used: what a quiet machine would take
     with tempfile.TemporaryDirectory(prefix="bench-classroom-") as workdir:
         python = None
         if "user" in args.isolation:  # a Python the fallback's users can run (this one may be under /root)
@@ -129,12 +151,17 @@ def main():
             python = user_sandbox.runnable_python(shared / "venv")
         for isolation in args.isolation:
             for jobs in args.jobs:
-                box, first, seconds = bench(layout, Path(workdir), args.submissions, jobs, isolation,
-                                            python if isolation == "user" else None)
+                box, first, seconds, used = bench(layout, Path(workdir), args.submissions, jobs, isolation,
+                                                  python if isolation == "user" else None, cpu)
                 per = seconds / args.submissions
                 estimate = first + 300 * per
-                print(f"{box.kind:<8} {jobs:>4}  {first:>17.1f}s  {seconds:>11.1f}s  "
-                      f"{per:>13.2f}s  {estimate / 60:>13.1f} min", flush=True)
+                line = (f"{box.kind:<8} {jobs:>4}  {first:>17.1f}s  {seconds:>11.1f}s  "
+                        f"{per:>13.2f}s  {estimate / 60:>13.1f} min")
+                if used is not None:  # a quiet machine: the class's CPU spread over min(jobs, cores) cores
+                    per_cpu = used / args.submissions
+                    line += (f"; CPU {per_cpu:.2f} s a submission, 300 on {min(jobs, os.cpu_count())} core(s) "
+                             f"≈ {300 * per_cpu / min(jobs, os.cpu_count()) / 60:.1f} min")
+                print(line, flush=True)
     load = os.getloadavg()
     print(f"load average at the end {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
 

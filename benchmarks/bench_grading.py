@@ -13,7 +13,9 @@ before the reference server) side by side: for each setting, the baseline's grad
 git into a temporary folder) and this kit's each run in a subprocess of the same Python, both
 warmed up by a first grading, and then grade fresh submissions in turns (baseline, this kit,
 baseline, ...), so that a change of load on a shared machine weighs on both; the table gives both
-medians and their ratio. A baseline without the user fallback (09db243 has none) grades the
+medians and their ratio, and, as root, the median CPU seconds of each side's grading (every process
+of it, in a cgroup v1 ``cpuacct`` group: a loaded machine stretches wall time far more than CPU
+time, and the grader of a baseline with one turn machine-wide waits for other graders' runs). A baseline without the user fallback (09db243 has none) grades the
 ``user`` setting in bubblewrap, its only sandbox: the ratio is then the fallback's cost against
 that grader's isolated time (the bound of issue 17.8).
 
@@ -21,6 +23,16 @@ that grader's isolated time (the bound of issue 17.8).
 created as ``setup.sh`` creates them, a Python they can run is made from the system's Python with
 real copies of this one's packages (``user_sandbox.runnable_python``), and the reference is a
 copy in a folder only root may enter (the grader refuses one the pool's users can read).
+
+``--gradescope`` grades fresh submissions as Gradescope's default container runs them (as root:
+cgroup v1 ``cpu`` and ``memory`` hierarchies): each one is a new ``/autograder`` folder (the
+reference and hidden checks in ``source/``, the submission, ``results/``) graded by
+``gradescope_autograder`` in a process started inside a control group of 0.5 CPU
+(``cpu.cfs_quota_us`` 50,000 of every 100,000) and 768 MiB of memory (``memory.limit_in_bytes``,
+which counts every process of the grading, its sandboxed runs and reference servers included, and
+the page cache it brings in); the seconds from start to results.json, the group's peak
+(``memory.max_usage_in_bytes``) and the CPU seconds it used (a cpuacct group), which on a loaded
+machine say what a quiet half CPU would take.
 
 ``--bound SECONDS`` measures what one submission can cost: every TODO an endless loop, graded with
 that time limit (by this kit, and by the baseline's when given), after the reference's answers.
@@ -65,24 +77,47 @@ def exported(ref, kit, folder):
     return Path(folder) / "baseline"
 
 
+CPUACCT = Path("/sys/fs/cgroup/cpuacct")  # cgroup v1: the CPU time of every process of a group, as root
+
+
 class Side:
     """A grader of the kit at ``kit`` (its own hwtools first on the path) in a subprocess, warmed
-    up; ``grade()`` grades one fresh submission there and returns the seconds it took."""
+    up; ``grade()`` grades one fresh submission there and returns the seconds it took, and
+    ``cpu`` the CPU seconds every process of that grading used (its sandboxed runs and reference
+    servers included; None where no cpuacct group can be made): on a shared machine the load
+    stretches the seconds, far less the CPU."""
 
     def __init__(self, kit, isolation, jobs, python=""):
+        import uuid  # noqa: PLC0415
+
         env = dict(os.environ, PYTHONPATH=str(kit))
-        self.process = subprocess.Popen([sys.executable, __file__, "--serve", str(kit), isolation, str(jobs), python],
-                                        env=env, cwd=kit, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        command = [sys.executable, __file__, "--serve", str(kit), isolation, str(jobs), python]
+        self.group, self.cpu = CPUACCT / f"hwgrade-bench-{uuid.uuid4().hex[:8]}", None
+        try:
+            self.group.mkdir()
+            command = ["/bin/sh", "-c", 'echo $$ > "$1"; shift; exec "$@"', "join", str(self.group / "cgroup.procs"),
+                       *command]
+        except OSError:
+            self.group = None
+        self.process = subprocess.Popen(command, env=env, cwd=kit, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.ready = json.loads(self.process.stdout.readline())
 
+    def _usage(self):
+        return int((self.group / "cpuacct.usage").read_text()) / 1e9 if self.group else None
+
     def grade(self):
+        before = self._usage()
         self.process.stdin.write("grade\n")
         self.process.stdin.flush()
-        return json.loads(self.process.stdout.readline())["seconds"]
+        seconds = json.loads(self.process.stdout.readline())["seconds"]
+        self.cpu = None if before is None else self._usage() - before
+        return seconds
 
     def close(self):
         self.process.stdin.close()
         self.process.wait()
+        if self.group:
+            self.group.rmdir()
 
 
 def serve(kit, isolation, jobs, python):
@@ -164,6 +199,59 @@ def bound(kit, baseline, time_limit, jobs):
               f"({measured['ran']} of 10 runs ran)", flush=True)
 
 
+GRADESCOPE_CPU, GRADESCOPE_MEMORY = 0.5, 768 * 2**20  # Gradescope's default container (its autograder docs)
+
+
+AUTOGRADE = ("import sys; from hwtools.grade.instructor.gradescope_autograder import run; "
+             "from hwtools.grade.sandbox import limit_own_memory; limit_own_memory(); "
+             "run(sys.argv[1], isolation=sys.argv[2], python=sys.argv[3] or None)")
+
+
+def gradescope(kit, count, isolation, python):
+    """Grade ``count`` fresh submissions, each as Gradescope's default container would: seconds and peak MiB."""
+    import shutil  # noqa: PLC0415
+    import uuid  # noqa: PLC0415
+
+    sys.path.insert(0, str(kit))
+    from hwtools.grade import blocks  # noqa: PLC0415
+    from hwtools.grade.kits import write_submission  # noqa: PLC0415
+
+    layout, name = blocks.load_layout(kit), f"hwgrade-bench-{uuid.uuid4().hex[:8]}"
+    cpu, memory, used = Path("/sys/fs/cgroup/cpu") / name, Path("/sys/fs/cgroup/memory") / name, CPUACCT / name
+    reference = private_reference(kit)
+    for _ in range(count):
+        with tempfile.TemporaryDirectory(prefix="bench-gradescope-") as folder:
+            root = Path(folder) / "autograder"
+            shutil.copytree(reference, root / "source")
+            (root / "results").mkdir()
+            fresh_submissions(write_submission, layout, folder, 1, "gs")[0].rename(root / "submission")
+            for group in (cpu, memory, used):
+                group.mkdir()
+            try:
+                (cpu / "cpu.cfs_period_us").write_text("100000")
+                (cpu / "cpu.cfs_quota_us").write_text(str(int(GRADESCOPE_CPU * 100000)))
+                (memory / "memory.limit_in_bytes").write_text(str(GRADESCOPE_MEMORY))
+                join = 'echo $$ > "$1"; echo $$ > "$2"; echo $$ > "$3"; shift 3; exec "$@"'
+                command = ["/bin/sh", "-c", join, "join", *(str(group / "cgroup.procs") for group in (cpu, memory, used)),
+                           sys.executable, "-c", AUTOGRADE, str(root), isolation, python]
+                started = time.perf_counter()
+                run = subprocess.run(command, cwd=kit, env=dict(os.environ, PYTHONPATH=str(kit)), capture_output=True,
+                                     text=True)
+                seconds = time.perf_counter() - started
+                peak = int((memory / "memory.max_usage_in_bytes").read_text()) / 2**20
+                killed = (memory / "memory.failcnt").read_text().strip()
+                seconds_cpu = int((used / "cpuacct.usage").read_text()) / 1e9
+            finally:
+                for group in (cpu, memory, used):
+                    group.rmdir()
+            data = json.loads((root / "results" / "results.json").read_text())
+            assert run.returncode == 0 and data["score"] == 39, (run.returncode, data.get("score"), run.stderr[-2000:])
+            print(f"gradescope {data['extra_data']['sandbox']:<6} {GRADESCOPE_CPU:g} CPU, "
+                  f"{GRADESCOPE_MEMORY // 2**20} MiB: {seconds:6.1f} s, peak {peak:5.0f} MiB (limit hit {killed} times); "
+                  f"{seconds_cpu:.1f} CPU seconds, so {seconds_cpu / GRADESCOPE_CPU:.1f} s on a quiet half CPU", flush=True)
+    shutil.rmtree(reference)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--submissions", type=int, default=5, help="timed submissions per setting (default 5)")
@@ -172,6 +260,8 @@ def main():
     parser.add_argument("--isolation", nargs="+", default=["bwrap", "user", "none"], choices=["bwrap", "user", "none"])
     parser.add_argument("--jobs", nargs="+", type=int, default=[1], help="worker runs of one submission side by side")
     parser.add_argument("--bound", type=float, metavar="SECONDS", help="only: a submission of endless loops, this time limit")
+    parser.add_argument("--gradescope", action="store_true", help="only: as Gradescope's default container (0.5 CPU, "
+                                                                     "768 MiB), as root")
     parser.add_argument("--serve", nargs=4, metavar=("KIT", "ISOLATION", "JOBS", "PYTHON"), help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.serve:
@@ -182,6 +272,10 @@ def main():
     load = os.getloadavg()
     print(f"{os.cpu_count()} CPU(s), load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (a shared machine is noisy)")
     with tempfile.TemporaryDirectory(prefix="bench-grading-") as folder:
+        if args.gradescope:
+            for isolation in args.isolation:
+                gradescope(kit, count, isolation, user_python(folder) if isolation == "user" else "")
+            return
         baseline = exported(args.baseline, kit, folder) if args.baseline else None
         if args.bound:
             for jobs in args.jobs:
@@ -213,10 +307,11 @@ def user_python(folder):
 def bench(kit, baseline, isolation, jobs, python, count):
     """One line of the table: this kit (and the baseline) grading ``count`` fresh submissions in turns."""
     sides = [Side(kit, isolation, jobs, python)] + ([Side(baseline, isolation, jobs, python)] if baseline else [])
-    times = [[] for _ in sides]
+    times, cpus = [[] for _ in sides], [[] for _ in sides]
     for _ in range(count):
-        for side, kept in zip(sides[::-1], times[::-1]):  # the baseline first, then this kit
+        for side, kept, used in zip(sides[::-1], times[::-1], cpus[::-1]):  # the baseline first, then this kit
             kept.append(side.grade())
+            used.append(side.cpu)
     for side in sides:
         side.close()
     now = times[0]
@@ -225,6 +320,8 @@ def bench(kit, baseline, isolation, jobs, python, count):
     if baseline:
         old = statistics.median(times[1])
         line += f"  {old:>16.2f}s ({sides[1].ready['kind']:<5})  {statistics.median(now) / old:>5.2f}x"
+    if None not in cpus[0]:
+        line += "  CPU " + " vs ".join(f"{statistics.median(used):.2f}s" for used in cpus)
     print(line, flush=True)
 
 

@@ -26,7 +26,9 @@ The result is a JSON-serialisable dict:
   right or not, breaks the code that calls it (1.2.1's gradient as a list: in words, also a note);
   ``grader_error`` only where the grader
   itself failed on that TODO (it is then not graded, and a class's status says so);
-* ``notes``, ``seconds``.
+* ``notes``, ``seconds``; ``secret`` where there are hidden checks: the random value this grading
+  drew its hidden inputs from, the instructor's to keep with the result (a regrade passes it back:
+  ``grade(..., secret=...)``) and never a student's.
 
 Where things are (``docs/design.md`` traces one grade through them):
 
@@ -39,7 +41,7 @@ Where things are (``docs/design.md`` traces one grade through them):
   edition's key), ``feedback`` (the text report and the one wording of a failure);
 * what is checked: ``checks/`` (one module per problem, TODO by TODO: behaviours, points, inputs,
   probes, judges, tolerances; ``checks/verdicts``: how an answer is compared and shown);
-* the launcher: ``sandbox`` (a worker's process, its limits, one untrusted run at a time) and
+* the launcher: ``sandbox`` (a worker's process, its limits, one run of a grading at a time) and
   ``processes`` (a worker's pipes with deadlines, the end of a process tree: on every system);
 * what runs inside the sandbox: ``in_sandbox/`` (copied whole into every kit as ``_hwgrade/``:
   the worker's loop, the probes, the served-call proxies, ``gym.make``'s served CartPole, the

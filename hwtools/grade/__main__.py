@@ -13,7 +13,8 @@ from pathlib import Path
 
 from hwtools.files import printable_output
 from hwtools.grade.feedback import render
-from hwtools.grade.grader import ANSWER_KEY, BUDGET_FACTOR, KIT_ROOT, Grader, GradingError, has_solutions
+from hwtools.grade.grader import (ANSWER_KEY, BUDGET_FACTOR, KIT_ROOT, SECRET_BYTES, Grader, GradingError, has_solutions,
+                                  is_secret)
 from hwtools.grade.blocks import load_layout
 from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, end_every_run, limit_own_memory
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
@@ -60,8 +61,10 @@ def main(argv=None):
                         help=f"address-space limit per run in MiB (default {DEFAULT_MEMORY_LIMIT // 2**20})")
     parser.add_argument("--jobs", type=int, default=None,
                         help="one kit: runs prepared while another executes (default: 2, or 1 on one CPU); a class: "
-                             "submissions read, prepared and judged side by side (default: one per CPU). Student code "
-                             "never runs in two sandboxes at once")
+                             "submissions graded side by side, their runs too (default: one per CPU)")
+    parser.add_argument("--secret", metavar="HEX",
+                        help="regrade with the hidden inputs of an earlier grading: its result's \"secret\" (--json); "
+                             "by default each grading draws new hidden inputs")
     parser.add_argument("--brief", action="store_true", help="only the table, without the checks of each TODO")
     args = parser.parse_args(argv)
     printable_output()
@@ -98,7 +101,11 @@ def main(argv=None):
     try:
         grader = Grader(reference, answer_key=args.answer_key, python=args.python, isolation=args.isolation,
                         time_limit=args.time_limit, memory_limit=args.memory_limit * 2**20, jobs=args.jobs)
-        result = grade_zip(grader, submission, args.todo) if one_zip else grader.grade(submission, todos=args.todo)
+        if args.secret is not None and (grader.hidden is None or not is_secret(args.secret)):
+            parser.error(f"--secret: expected the {2 * SECRET_BYTES} hex digits of an earlier grading's \"secret\" "
+                         "(its --json), with a reference that has hidden checks")
+        result = (grade_zip(grader, submission, args.todo, args.secret) if one_zip
+                  else grader.grade(submission, todos=args.todo, secret=args.secret))
     except GradingError as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -116,11 +123,11 @@ def _stop(signum, _frame):
     os._exit(128 + signum)
 
 
-def grade_zip(grader, path, todos=None):
+def grade_zip(grader, path, todos=None, secret=None):
     """Grade one student's zip, read as a class's zips are read (``submissions.open_submission``)."""
     layout = grader.layout or load_layout(KIT_ROOT)  # the kit's file names, to know a zip of the bare files
     with open_submission(path, kit_file_names(layout)) as opened:
-        result = grader.grade(opened.kit, todos=todos)
+        result = grader.grade(opened.kit, todos=todos, secret=secret)
     result["submission"] = str(path)
     result["notes"][:0] = opened.notes
     return result

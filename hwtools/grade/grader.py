@@ -4,7 +4,10 @@ This is the trusted side. It imports the standard library, numpy and the grader'
 never ``hwlib``, never anything from the submission. For each TODO T it builds a kit holding the
 student's blocks for T and a stub in every other block, and runs T's cases on it in a sandboxed
 worker (``broker.run_cases``): first the visible cases of every TODO, then, each in a run of its own,
-the hidden ones, drawn for the submission's code (``case_set``). When the student's code calls another TODO's function (or
+the hidden ones, drawn from the grading's secret (``case_set``): 128 random bits drawn afresh for
+each grading and returned with the instructor's result (``result["secret"]``), so that a regrade
+that passes it back (``grade(..., secret=...)``) draws the same inputs, and nothing learnt from any
+earlier grading tells anything about a later one's. When the student's code calls another TODO's function (or
 ``run_policy``), the worker forwards the call and the reference server answers it
 (``reference.py``, ``in_sandbox/served.py``): a mistake costs points only in the TODO where it was made,
 and no process that runs a student's code holds any reference solution. The reference's own
@@ -18,11 +21,12 @@ same runs, so the preview gives the instructor's verdict wherever the other TODO
 
 from __future__ import annotations
 
-import contextlib
 import copy
 import hashlib
 import importlib.util
 import os
+import re
+import secrets
 import sys
 import tempfile
 import threading
@@ -44,8 +48,9 @@ HIDDEN_CHECKS = Path("instructor") / "hidden_checks" / "__init__.py"
 SERVICE_TIME_LIMIT = 900.0  # the reference's own runs (re-scoring, the notebook's training run)
 BUDGET_FACTOR = 4.0  # a submission's runs take at most this many time limits of wall clock together
 NOT_SERVED = ("1.3.3",)  # blocks the reference server keeps as stubs: the learning rate is 1.3.3's answer
-__all__ = ["ANSWER_KEY", "KIT_ROOT", "HIDDEN_CHECKS", "Grader", "GradingError", "has_solutions", "read_answer_key",
-           "write_answer_key"]
+SECRET_BYTES = 16  # a grading's secret: this many random bytes, as hex
+__all__ = ["ANSWER_KEY", "KIT_ROOT", "HIDDEN_CHECKS", "Grader", "GradingError", "has_solutions", "is_secret",
+           "read_answer_key", "write_answer_key"]
 
 
 class GradingError(Exception):
@@ -95,6 +100,11 @@ def _digest(*parts):
     return digest.hexdigest()
 
 
+def is_secret(value):
+    """Whether ``value`` has the form of a grading's secret (``SECRET_BYTES`` bytes as lowercase hex)."""
+    return isinstance(value, str) and re.fullmatch(f"[0-9a-f]{{{2 * SECRET_BYTES}}}", value) is not None
+
+
 def _phase(cases):
     return [(case_id, behaviour.probe, args) for case_id, behaviour, args in cases]
 
@@ -111,9 +121,9 @@ class Grader:
     bytes of address space; ``budget``: wall-clock seconds all runs of one submission may take
     together (default ``BUDGET_FACTOR`` x ``time_limit``), after which its remaining TODOs are not
     run and fail as timed out. ``jobs``: threads per submission: one run executes while the
-    others prepare their sandboxes (no two runs of student code overlap, ``sandbox.py``), and
+    others prepare their sandboxes (one run of a submission at a time, ``sandbox.py``), and
     judging runs alongside. Thread-safe: several submissions may be graded at once with one
-    Grader. ``close()`` (or ``with Grader(...) as grader``) ends its reference servers; idle ones
+    Grader, their runs side by side. ``close()`` (or ``with Grader(...) as grader``) ends its reference servers; idle ones
     end by themselves after a few seconds.
     """
 
@@ -191,10 +201,18 @@ class Grader:
 
     # ---- one submission ------------------------------------------------------------------
 
-    def grade(self, submission, todos=None):
+    def grade(self, submission, todos=None, secret=None):
         """Grade the kit at ``submission``; ``todos``: the TODO ids to grade (default: all).
-        Returns a JSON-serialisable dict (see ``hwtools.grade`` for its fields)."""
+        Returns a JSON-serialisable dict (see ``hwtools.grade`` for its fields). With hidden checks,
+        the hidden inputs are drawn from ``secret``: a new one for a new grading (None), the one a
+        grading returned (``result["secret"]``, the instructor's to keep and never a student's) for
+        a regrade of the same submission, which then gets the same inputs and the same grade."""
         started = time.monotonic()
+        if secret is not None and (self.hidden is None or not is_secret(secret)):
+            raise ValueError(f"secret: expected None or the {2 * SECRET_BYTES} hex digits of an earlier grading's "
+                             f"result['secret'] (a grading with hidden checks), got {secret!r}")
+        if self.hidden is not None:
+            secret = secret or secrets.token_hex(SECRET_BYTES)
         submission = Path(submission).resolve()
         refused = self.refusal(submission)
         if refused:
@@ -210,6 +228,8 @@ class Grader:
             "one_mistake_one_place": self.reference is not None,
             "notes": [], "todos": [],
         }
+        if secret is not None:  # the instructor's: stored with the result, never shown to a student
+            result["secret"] = secret
         layout = self.layout
         if layout is None:
             try:
@@ -226,24 +246,23 @@ class Grader:
             read = blocks.Submission(submission, problems={todo: why for todo in TODO_BY_ID})
         if self.reference is not None:  # without a reference the submission's own files are what runs
             result["notes"].extend(read.notes)
-        # A preview runs the student's own code in servers beside its runs: it holds the machine's turn throughout.
-        with self.sandbox.whole_turn() if self.reference is None else contextlib.nullcontext():
-            pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
-            graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
-            budget = Budget(self.budget)
-            try:
-                with ThreadPoolExecutor(max_workers=self.jobs) as executor:
-                    if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
-                        list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
-                    entries = dict(zip(graded, executor.map(
-                        lambda todo: self._todo_entry(todo, read, layout, pool, budget), graded)))
-                for todo in selected:
-                    result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
-                                                                                   self._scrub, self._limits, []))
-                self._blame(result["todos"], read, layout, pool, budget)
-            finally:
-                if pool is not None and pool is not self.pool:
-                    pool.close()
+        # A preview (no hidden input) runs the student's own code in servers beside its runs: it needs no turn.
+        pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
+        graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
+        budget = Budget(self.budget)  # this grading's wall clock, and the turn its runs take
+        try:
+            with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+                if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
+                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
+                entries = dict(zip(graded, executor.map(
+                    lambda todo: self._todo_entry(todo, read, layout, pool, budget, secret), graded)))
+            for todo in selected:
+                result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
+                                                                               self._scrub, self._limits, []))
+            self._blame(result["todos"], read, layout, pool, budget)
+        finally:
+            if pool is not None and pool is not self.pool:
+                pool.close()
         entries = result["todos"]
         result["total"] = {
             "auto_earned": round(sum(entry["auto_earned"] for entry in entries), 2),
@@ -329,10 +348,11 @@ class Grader:
                 own[todo] = bodies
         return ReferencePool(self.sandbox, kits.composite_files(layout, own, set()), idle=1.0, trusted=False)
 
-    def _todo_entry(self, todo, read, layout, pool, budget):
-        """The judged result entry of ``todo``: its run (memoized per grader as the entry it gave, so
-        that a kit already run is not run again and no run's answers are kept once judged), the
-        reference's values, the services its judges need. Any failure becomes the entry's verdict."""
+    def _todo_entry(self, todo, read, layout, pool, budget, secret=None):
+        """The judged result entry of ``todo``: its run (without hidden inputs memoized per grader as
+        the entry it gave, so that a kit already run is not run again and no run's answers are kept
+        once judged; hidden inputs are the grading's own, ``secret``'s), the reference's values, the
+        services its judges need. Any failure becomes the entry's verdict."""
         try:
             notes = judging.seen(todo, read, layout)
         except Exception:  # noqa: BLE001 - what the code reaches for is a note; a block too deep to parse has none
@@ -341,7 +361,11 @@ class Grader:
             files = self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
             if isinstance(files, str):
                 return self._judge(todo, {"student": files, "reference": self._reference_of(todo)}, pool, notes)
-            cases = self.case_set(todo, self._parsed_bodies(todo, read, layout))
+            cases = self.case_set(todo, secret)
+            if cases.draw:  # this grading's own hidden inputs: no other grading draws them again
+                entry = self._run_and_judge(todo, files, pool, budget, notes, cases)
+                entry.pop("_budget", None)
+                return entry
             key = _digest(kits.files_digest(files), pool.digest if pool else "", todo,
                           *[fingerprint({"id": case_id, "args": args}) for case_id, _, args in cases.visible + cases.hidden],
                           len(cases.visible), self.sandbox.time_limit)
@@ -355,25 +379,20 @@ class Grader:
             entry["grader_error"] = f"{type(error).__name__}: {error}"[:300]
             return entry
 
-    def case_set(self, todo, bodies):
-        """The cases ``todo`` is graded on for the code ``bodies`` (the student's blocks for it): the
-        visible ones, and hidden ones drawn for the SHA-256 of that code (``hidden_cases(behaviour,
-        draw)``): each submission gets its own hidden inputs, so none that one run could carry out
-        serves another submission, and a regrade of the same code gets the same inputs and grade."""
-        if self.hidden is None:
+    def case_set(self, todo, secret):
+        """The cases ``todo`` is graded on in the grading of secret ``secret``: the visible ones, and
+        hidden ones drawn from HMAC-SHA256(the hidden checks' seed, the check's id + ``secret``)
+        (``hidden_cases(behaviour, draw)``). A fresh secret per grading: the inputs of any number
+        of earlier gradings, of the same code or another, tell nothing of a later one's, so no
+        relay between gradings can carry anything of use; the same secret (a regrade) draws the
+        same inputs. Without hidden checks (or a secret): the grader's fixed cases."""
+        if self.hidden is None or not secret:
             return self.cases[todo]
-        draw = _digest(todo, *("\n".join(body) for body in bodies))
-        return self._memoized(("cases", todo, draw), lambda: checks.case_set(todo, self.hidden, draw))
+        return checks.case_set(todo, self.hidden, secret)
 
-    def case_sets(self, submission):
-        """{TODO: its case set} for the submission at ``submission`` (what its grading draws)."""
-        layout = self.layout or blocks.load_layout(Path(submission))
-        read = blocks.read_submission(Path(submission), layout)
-        sets = {}
-        for todo in checks.GRADED_TODOS:
-            bodies = self._parsed_bodies(todo, read, layout)
-            sets[todo] = self.cases[todo] if isinstance(bodies, str) else self.case_set(todo, bodies)
-        return sets
+    def case_sets(self, secret):
+        """{TODO: its case set} in the grading of secret ``secret`` (``result["secret"]``)."""
+        return {todo: self.case_set(todo, secret) for todo in checks.GRADED_TODOS}
 
     def _reference_of(self, todo, cases=None):
         return self._reference_values(todo, cases) if self.reference is not None else None
@@ -388,7 +407,7 @@ class Grader:
                 return None
         if isinstance(files, str):
             return None
-        return self._memoized(("visible", kits.files_digest(files), todo),
+        return self._memoized(("visible", kits.files_digest(files), pool.digest if pool else "", todo),
                               lambda: self._run_now(todo, files, _phase(self.cases[todo].visible), [], pool, budget),
                               keep=lambda run: not run[0].budget)
 
@@ -397,8 +416,8 @@ class Grader:
         this, ``grade``), then, only if that one ended well and answered something, the hidden one, so
         that no run that can still send text back to a student begins after a run that saw a hidden
         input. A hidden run that stops is a stop in the hidden phase (nothing of it is shown)."""
-        if not cases.hidden:
-            student = self._run_now(todo, files, _phase(cases.visible), [], pool, budget)
+        if not cases.hidden:  # its visible run is all (run already in the visible phase where there are hidden checks)
+            student = self._visible_run(todo, None, None, pool, budget, files)
         else:
             outcome, results = self._visible_run(todo, None, None, pool, budget, files)
             student = (outcome, dict(results))
@@ -420,6 +439,7 @@ class Grader:
                                   self.known_mistakes)
 
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
+        """One run of ``todo``'s kit ``files`` on those cases, in its grading's turn (``budget``)."""
         with tempfile.TemporaryDirectory(prefix="hwgrade-kit-", ignore_cleanup_errors=True) as scratch:
             kit = kits.write_files(files, Path(scratch) / "kit")
             try:
@@ -430,7 +450,7 @@ class Grader:
 
     def _reference_values(self, todo, cases=None):
         """{case id: the reference's values} for every exact case of ``todo`` (its case set ``cases``,
-        default the grader's own; memoized per grader and case set)."""
+        default the grader's own, memoized per grader; one grading's own are used once)."""
         cases = cases or self.cases[todo]
 
         def compute():
@@ -448,7 +468,7 @@ class Grader:
                 values[case_id] = result["values"]
             return values
 
-        return self._memoized(("reference", todo, cases.draw), compute)
+        return compute() if cases.draw else self._memoized(("reference", todo), compute)
 
     def _memoized(self, key, compute, keep=lambda value: True):
         """``compute()``, once per ``key`` for this grader (threads asking at once wait for the first);
@@ -498,7 +518,7 @@ class Grader:
             files = self._composite(todo, read, self.layout)
             if isinstance(files, str):
                 return None
-            student = self._memoized(("visible", kits.files_digest(files), todo),
+            student = self._memoized(("visible", kits.files_digest(files), self.pool.digest, todo),
                                      lambda: self._run_now(todo, files, _phase(visible.visible), [], self.pool))
             run = {"student": student, "reference": self._reference_values(todo)}
             services = self._services(self._service_requests(todo, run, visible), self.pool)

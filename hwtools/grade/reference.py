@@ -95,9 +95,9 @@ class ReferenceServer:
     """One server process: ``send`` numbers each message, ``receive`` checks nothing but the form."""
 
     def __init__(self, sandbox, kit_dir, lifetime=LIFETIME, trusted=True):
-        # never exclusive: a server answers the run that holds the turn (the preview's server, on the
+        # no grading's turn: a server answers the run that holds it (the preview's server, on the
         # student's own kit, holds no secret: no reference, no hidden input)
-        self.process = _spawn(lambda: sandbox.start(kit_dir, lifetime, trusted=trusted, exclusive=False))
+        self.process = _spawn(lambda: sandbox.start(kit_dir, lifetime, trusted=trusted))
         self.sent, self.broken, self.closed, self.last_used = 0, False, False, time.monotonic()
         try:
             number = self.send({"op": "setup", "mode": "server"})

@@ -33,22 +33,22 @@ else works, but a ``Grader`` with a reference refuses to run students' code so
 (``Grader.refusal``: fail closed); only the student edition's preview, or an explicit "none",
 runs that way.
 
-**One untrusted run at a time.** Sandboxes cannot hide every piece of kernel state two live
-processes share: byte-range, OFD and flock locks on a file both bind read-only, inotify on it, the
-timing of a shared CPU or cache. So two runs that hold student code never overlap on this machine
-(``_UNTRUSTED_RUN``, whatever grader, grading process or submission they belong to: a thread lock
-in each process, and an ``flock`` on a file in the grading user's own ``~/.cache/hwgrade/`` between
-processes, which the pool's users cannot reach and the kernel releases when a grader dies): a run may be *started* early
-(its sandbox made, Python, numpy, gymnasium and the grader's own runtime imported: trusted code
-only) while another one executes, but it *begins* (``WorkerProcess.begin``, on the first message
-the grader sends, before any code of the kit is imported) only once the run before it has ended
-and every process of it is dead: the sandbox's process-namespace init gone (bubblewrap), no
+**A grading's runs take turns; gradings run side by side.** Sandboxes cannot hide every piece of
+kernel state two live processes share: byte-range, OFD and flock locks on a file both bind
+read-only, inotify on it, the timing of a shared CPU or cache. Hidden inputs are drawn from a secret
+of each grading (``Grader.grade``), so what such a channel could carry between two gradings is
+worth nothing (docs/grading.md says why), and the runs of different gradings overlap freely. Within
+one grading they never do: every run of student code given the grading's ``Budget`` takes its
+``turn``, so no run of a submission can answer for another run of it (every hidden run also comes
+after all of the grading's visible runs: ``Grader.grade``). A run may be *started* early (its
+sandbox made, Python, numpy, gymnasium and the grader's own runtime imported: trusted code only)
+while another one executes, but it *begins* (``WorkerProcess.begin``, on the first message the
+grader sends, before any code of the kit is imported) only once its grading's run before it has
+ended and every process of it is dead: the sandbox's process-namespace init gone (bubblewrap), no
 process of the run's user left (the user fallback). Trusted work runs alongside: the reference
-servers (``trusted=True``, no student code), judging, reading submissions. A run's wall-clock
-clock starts when it begins. A preview (no reference: the student's own code in its runs and in
-the servers of its own kit at once) holds the turn for its whole grade (``Sandbox.whole_turn``).
-On Windows there is no ``flock``: the turn is kept within one grading process only (class
-gradings are Linux's).
+servers (``trusted=True``, no student code), judging, reading submissions; so do the servers of a
+preview's own kit (no hidden input: nothing to keep apart). A run's wall clock starts when it
+begins. No lock file: nothing is shared between grading processes.
 
 Every run has a CPU-time limit, an address-space limit, a file-size limit, an open-file limit
 (``MAX_OPEN_FILES`` per process, which with the process limit bounds the pipes a run can fill)
@@ -80,7 +80,6 @@ import tempfile
 import threading
 import time
 import uuid
-from contextlib import contextmanager
 from pathlib import Path
 
 from hwtools.grade.in_sandbox.channel import ChannelTimeout
@@ -88,11 +87,10 @@ from hwtools.grade.in_sandbox.worker import set_limit
 from hwtools.grade.kits import WORKER, worker_env
 from hwtools.grade.processes import Pipes, kill_tree
 
-try:  # macOS and Linux; Windows has neither (its runs have no CPU or memory limit, and the lock is per process)
-    import fcntl
+try:  # macOS and Linux; Windows has none (its runs have no CPU or memory limit)
     import resource
 except ImportError:
-    fcntl = resource = None
+    resource = None
 try:  # the instructor's kit (the student edition has no sandbox: hwtools/grade/instructor/ is not in it)
     from hwtools.grade.instructor.bwrap_sandbox import (bwrap_options, data_pipe, grader_makes_namespace,
                                                         host_user_namespace, options_pipe, probe_isolation,
@@ -115,39 +113,7 @@ GONE_SECONDS = 30.0  # to wait for a killed sandbox's last process
 BUDGET_WORDS = "the submission's time budget was used up"
 
 
-class _OneRunAtATime:
-    """Held by the one run of student code that executes on this machine (for this user's graders)."""
-
-    def __init__(self):
-        self._thread, self._fd, self._machine_wide = threading.Lock(), None, True
-
-    def acquire(self, machine_wide=True):
-        """Take the turn: within this process, and (``machine_wide``) between processes too."""
-        self._thread.acquire()
-        self._machine_wide = machine_wide
-        try:
-            if machine_wide and self._fd is None and fcntl is not None:
-                folder = Path.home() / ".cache" / "hwgrade"
-                folder.mkdir(mode=0o700, parents=True, exist_ok=True)
-                self._fd = os.open(folder / "untrusted-run.lock", os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o600)
-            if machine_wide and self._fd is not None:
-                fcntl.flock(self._fd, fcntl.LOCK_EX)
-        except OSError as error:
-            self._thread.release()
-            raise RuntimeError(f"no run begins: the lock that keeps runs of student code apart ({error}); the "
-                               "grading user's home folder must be writable") from error
-        except BaseException:
-            self._thread.release()
-            raise
-
-    def release(self):
-        if self._machine_wide and self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
-        self._thread.release()
-
-
-_UNTRUSTED_RUN = _OneRunAtATime()
-_SURVIVORS = []  # set when a run's processes could not be killed: no run begins after it
+_SURVIVORS = []  # set when a run's processes could not be killed: no run of student code begins after it
 _LIVE = set()  # the runs of this process whose processes may be alive (end_every_run)
 
 
@@ -160,12 +126,13 @@ def end_every_run():
 
 
 class Budget:
-    """The wall-clock seconds the runs of one submission may take together (each from its ``begin``
-    to its end); thread-safe. ``remaining()`` can go negative once spent."""
+    """One grading's runs: the wall-clock seconds they may take together (each from its ``begin`` to
+    its end; thread-safe; ``remaining()`` can go negative once spent), and its ``turn``, held by each
+    of them from its ``begin`` until every process of it is dead."""
 
     def __init__(self, seconds):
         self.seconds, self.spent = float(seconds), 0.0
-        self._lock = threading.Lock()
+        self._lock, self.turn = threading.Lock(), threading.Lock()
 
     def remaining(self):
         with self._lock:
@@ -225,7 +192,6 @@ class Sandbox:
         if self.kind == "none" and isolation == "auto":
             self.how = "; ".join(reasons)
         self.isolated = self.kind != "none"
-        self._whole_turn = False
         self.time_limit = float(time_limit)
         self.memory_limit = int(memory_limit)
         if self.isolated:
@@ -267,35 +233,14 @@ class Sandbox:
             return prlimit + run_folder.command(self.python) + limits, None
         return prlimit + [self.python, "-B", "-s", str(WORKER), str(kit_dir)] + limits, None
 
-    def start(self, kit_dir, time_limit=None, trusted=False, exclusive=None, budget=None):
+    def start(self, kit_dir, time_limit=None, trusted=False, budget=None):
         """Start one worker on ``kit_dir``: a ``WorkerProcess`` to talk to (``send``/``receive``) and
         to end (``finish``, which also ends every process it started). Launching and limits live
         here; what the messages say is the caller's business. ``trusted``: the kit holds no student
-        code (a reference server, ``run_kind``). ``exclusive`` (default: not trusted): the run
-        begins only when no other exclusive run of this process is alive (the module docstring);
-        ``budget``: the submission's ``Budget``."""
-        if exclusive is None:
-            exclusive = not trusted and not self._whole_turn
-        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit), trusted, exclusive, budget)
-
-    @contextmanager
-    def whole_turn(self):
-        """Hold the machine's one turn for student code (the module docstring) around a whole
-        preview: the student's own code runs there in several processes at once (its runs and the
-        servers of its own kit, one student's code and no hidden input), and none of them takes
-        the turn itself, so none overlaps another grading's runs. Unsandboxed (the student edition's
-        preview: the student's own code, as the student, with nothing hidden from it) there is no
-        other grading's run to keep it apart from: the turn is this process's only, with no lock file
-        and no writable home (a JupyterHub's may be read-only)."""
-        _UNTRUSTED_RUN.acquire(machine_wide=self.isolated)
-        try:
-            if _SURVIVORS:
-                raise RuntimeError(f"no run begins: {_SURVIVORS[0]}")
-            self._whole_turn = True
-            yield
-        finally:
-            self._whole_turn = False
-            _UNTRUSTED_RUN.release()
+        code (a reference server, ``run_kind``). ``budget``: the grading's ``Budget``: an untrusted
+        run begins only when no other run of that grading is alive, and no other begins until every
+        process of it is dead (the module docstring)."""
+        return WorkerProcess(self, kit_dir, float(time_limit or self.time_limit), trusted, budget)
 
 
 class WorkerProcess:
@@ -303,9 +248,9 @@ class WorkerProcess:
     both npz messages (``worker.py``); its error stream goes to a file. ``deadline`` (monotonic
     seconds, the wall-clock backstop, counted from ``begin``) ends it at the latest."""
 
-    def __init__(self, sandbox, kit_dir, time_limit, trusted=False, exclusive=False, budget=None):
+    def __init__(self, sandbox, kit_dir, time_limit, trusted=False, budget=None):
         self.sandbox, self.time_limit, self.kind = sandbox, time_limit, sandbox.run_kind(trusted)
-        self.exclusive, self.budget = exclusive, budget
+        self.budget, self.trusted = budget, trusted
         self.started = time.monotonic()
         self.deadline = self.started + wall_limit(time_limit)
         self.begun = self._holding = self._budget_bound = self._killed = False
@@ -363,16 +308,16 @@ class WorkerProcess:
                     os.close(fd)
 
     def begin(self):
-        """Start the run proper (once; ``send`` calls it): an exclusive run first waits until no other
-        one is alive, and its wall-clock limit (and the submission's budget) count from here. Raises
+        """Start the run proper (once; ``send`` calls it): a run of a grading first waits for its
+        turn, and its wall-clock limit (and the grading's budget) count from here. Raises
         ChannelTimeout when the budget is already spent: no code of the kit runs then."""
         if self.begun:
             return
-        if self.exclusive:
-            _UNTRUSTED_RUN.acquire()
+        if self.budget is not None and not self.trusted:
+            self.budget.turn.acquire()
             self._holding = True
-            if _SURVIVORS:
-                raise RuntimeError(f"no run begins: {_SURVIVORS[0]}")
+        if _SURVIVORS and not self.trusted:
+            raise RuntimeError(f"no run begins: {_SURVIVORS[0]}")
         self.begun = True
         self.started = time.monotonic()
         limit = wall_limit(self.time_limit)
@@ -425,7 +370,7 @@ class WorkerProcess:
     def finish(self, graceful=True):
         """End the worker and everything it started; (exit code, last lines of its error stream, seconds).
         ``graceful``: give it until the deadline to exit on its own (it was told to), else kill now.
-        An exclusive run lets the next one begin only once every process of it is dead."""
+        A grading's next run begins only once every process of this one is dead."""
         try:
             code = _finish(self, self.deadline if graceful and self.begun else time.monotonic())
             if self.kind == "none":
@@ -447,7 +392,7 @@ class WorkerProcess:
                 self.memory_peak = self.group.memory_peak()
                 gone = self.group.close() and gone
                 self.group = None
-            if not gone and self.exclusive:
+            if not gone and not self.trusted:
                 _SURVIVORS.append("a process or a file of an earlier run of student code could not be removed")
             stream = getattr(self, "_stderr", None)
             if stream is not None:
@@ -455,12 +400,13 @@ class WorkerProcess:
             self._scratch.cleanup()
         finally:
             _LIVE.discard(self)
-            if self.begun and self.budget is not None:
-                self.budget.spend(time.monotonic() - self.started)
+            budget = self.budget
+            if self.begun and budget is not None:
+                budget.spend(time.monotonic() - self.started)
                 self.budget = None
             if self._holding:
                 self._holding = False
-                _UNTRUSTED_RUN.release()
+                budget.turn.release()
             self.ended.set()
 
 

@@ -56,9 +56,9 @@ def _extra_cases(behaviour_id, rng):
 
 def hidden_cases(behaviour, draw=""):
     """The hidden inputs of one behaviour (a ``hwtools.grade.checks.behaviour.Behaviour``), drawn from
-    HMAC-SHA256(HIDDEN_SEED, behaviour id + ``draw``); the grader passes as ``draw`` the SHA-256 of the
-    submission's code for that TODO, so each submission gets its own hidden inputs (nothing one
-    student's run could carry out serves another) and a regrade of the same code the same ones."""
+    HMAC-SHA256(HIDDEN_SEED, behaviour id + ``draw``); the grader passes as ``draw`` the secret of one
+    grading (random, drawn afresh for each grading, kept with the instructor's result), so no earlier
+    grading's inputs tell anything of a later one's, and a regrade with the stored secret gets the same."""
     count = COUNTS.get(behaviour.id, behaviour.visible_count)
     key = hmac.new(str(HIDDEN_SEED).encode(), f"{behaviour.id}\0{draw}".encode(), hashlib.sha256).digest()
     rng = np.random.default_rng(int.from_bytes(key, "little"))

@@ -287,42 +287,29 @@ def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition
     assert "used the reference's code for TODOs 1.1.1, 1.2.1, 1.3.1, 1.3.2" in graded_notes
 
 
-def test_a_preview_holds_the_machines_turn_while_any_process_of_it_runs(wrong_edition, monkeypatch):
-    """Issue 30.7: the preview runs the student's own code in its runs and in the servers of its own
-    kit (1.3.2 calls the student's 1.2.1 there); every one of them begins and ends while the preview
-    holds the machine's one turn for student code, so none overlaps another grading's runs."""
+def test_a_preview_takes_only_its_own_turn_and_no_lock_file(wrong_edition, monkeypatch, tmp_path):
+    """Issue 30.7, restated by issue 42.5: the preview runs the student's own code in its runs and in
+    the servers of its own kit (1.3.2 calls the student's 1.2.1 there). It has no hidden input, so
+    nothing in it is kept from other gradings (docs/grading.md): its runs take only its own grading's
+    turn, the servers of the student's own kit run beside them, and it takes no lock file (a hub's
+    home may be read-only)."""
     from hwtools.grade import Grader, sandbox
 
-    turn, held, seen = sandbox._UNTRUSTED_RUN, [False], []
+    started, real = [], sandbox.Sandbox.start
 
-    class Recorded:
-        def acquire(self, machine_wide=True):
-            turn.acquire(machine_wide)
-            held[0] = True
+    def recorded(self, kit_dir, time_limit=None, trusted=False, budget=None):
+        started.append(budget)
+        return real(self, kit_dir, time_limit=time_limit, trusted=trusted, budget=budget)
 
-        def release(self):
-            held[0] = False
-            turn.release()
-
-    begin, cleanup = sandbox.WorkerProcess.begin, sandbox.WorkerProcess._cleanup
-
-    def recorded_begin(self):
-        begin(self)
-        seen.append(("begin", held[0]))
-
-    def recorded_cleanup(self):
-        seen.append(("end", held[0]))
-        cleanup(self)
-
-    monkeypatch.setattr(sandbox, "_UNTRUSTED_RUN", Recorded())
-    monkeypatch.setattr(sandbox.WorkerProcess, "begin", recorded_begin)
-    monkeypatch.setattr(sandbox.WorkerProcess, "_cleanup", recorded_cleanup)
+    monkeypatch.setattr(sandbox.Sandbox, "start", recorded)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))  # a home with nothing in it: nothing may be made there
     grader = Grader(answer_key=wrong_edition / "hwtools" / "grade" / "answer_key.json", isolation="none")
     entry = grader.grade(wrong_edition, todos=["1.3.2"])["todos"][0]
     assert entry["status"] == "graded", entry
-    assert seen.count(("begin", True)) >= 2, seen  # the run and a server of the student's own kit
-    assert all(during for _, during in seen), seen
-    assert not held[0]
+    runs, servers = [budget for budget in started if budget], [budget for budget in started if not budget]
+    assert runs and servers, started  # its run and a server of the student's own kit, which takes no turn
+    assert len(set(map(id, runs))) == 1, "one grading: one turn"
+    assert not (tmp_path / "home").exists()
 
 
 def test_a_check_cell_names_the_todo_at_fault(wrong_edition):

@@ -32,7 +32,7 @@ from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, Grader, blocks, checks
 from hwtools.grade.instructor import classroom
 from hwtools.grade.checks.verdicts import show
 from hwtools.grade.instructor.gradebook import gradebook_header
-from hwtools.grade.grader import read_answer_key
+from hwtools.grade.grader import BUDGET_FACTOR, read_answer_key
 import editions
 import test_grading as proof  # the grader's proof builds the wrong solutions and cheats
 
@@ -40,6 +40,9 @@ KIT = Path(__file__).resolve().parents[2]
 TOTAL_COLUMN = f"auto total (/{AUTO_POINTS:g})"  # the gradebook's total column
 
 TIME_LIMIT = 5.0  # per TODO's run: twice what the whole reference kit takes; the endless loop costs it once
+# What a submission's runs may take together, by the wall clock: far more than they need on a machine shared with
+# other gradings and test runs (they run side by side), since no test here is about the budget (test_sandbox's is).
+BUDGET = 60 * TIME_LIMIT
 JOBS = 2
 HUGE = 200_000_000  # the 200 MB file: zeros, compressed to almost nothing, never written out
 AUTO_TODOS = [todo.id for todo in TODOS if todo.auto]
@@ -61,7 +64,7 @@ pytestmark = pytest.mark.timeout(900)
 
 @pytest.fixture(scope="module")
 def grader():
-    return Grader(KIT, time_limit=TIME_LIMIT, jobs=1)
+    return Grader(KIT, time_limit=TIME_LIMIT, jobs=1, budget=BUDGET)
 
 
 @pytest.fixture(scope="module")
@@ -270,13 +273,12 @@ def test_each_student_gets_markdown_feedback_that_shows_no_hidden_input(a_class,
     assert "rejected: a path that leaves the submission" in feedback["traversal"]
     assert "Nothing of this submission was run" in feedback["huge"]
     assert "on a hidden input (hidden inputs are not shown" in feedback["cheat-hardcoded_visible"]
-    case_sets = [grader.cases]  # and each folder submission's own hidden inputs (drawn for its code)
-    for folder in a_class.folder.iterdir():
-        if folder.is_dir() and (folder / "hwlib").is_dir() and not (folder / "hwlib").is_symlink():
-            try:
-                case_sets.append(grader.case_sets(folder))
-            except Exception:  # noqa: BLE001 - one the grader cannot read ran nothing
-                pass
+    case_sets = [grader.cases]  # and each grading's own hidden inputs (drawn from the secret its state keeps)
+    for saved in classroom.state_folder(out / "grades.csv").glob("*.json"):
+        secret = json.loads(saved.read_text(encoding="utf-8"))["secret"]
+        if secret is not None:
+            assert secret not in "".join(feedback.values()) + (out / "grades.csv").read_text(encoding="utf-8")
+            case_sets.append(grader.case_sets(secret))
     assert len(case_sets) > 10
     hidden_inputs = {show(value) for sets in case_sets for todo in checks.GRADED_TODOS for _, _, args in sets[todo].hidden
                      for value in args.values() if isinstance(value, np.ndarray) and np.unique(value).size >= 3}
@@ -325,10 +327,18 @@ def test_a_changed_submission_is_graded_again_and_only_it(a_class, first_run, gr
     target = copy / "correct-folder" / "hwlib" / "logreg.py"
     target.write_text(target.read_text().replace("### END TODO 2.2.1", "# changed after the deadline\n"
                                                  "    ### END TODO 2.2.1", 1))
+    # and one regrade of the same files (as when the grader changed: its saved key is stale)
+    saved = {path.stem: json.loads(path.read_text()) for path in classroom.state_folder(tmp_path / "grades.csv").iterdir()}
+    stale = classroom.state_folder(tmp_path / "grades.csv") / "wrong-forward_difference.json"
+    stale.write_text(json.dumps(saved["wrong-forward_difference"] | {"key": "stale"}))
     report = classroom.grade_class(copy, tmp_path / "grades.csv", tmp_path / "feedback", grader=grader, jobs=JOBS)
-    assert report.graded_now == 1
+    assert report.graded_now == 2
     changed = next(result for result in report.students if result.student == "correct-folder")
     assert not changed.reused and changed.auto_total == AUTO_POINTS
+    now = {path.stem: json.loads(path.read_text()) for path in classroom.state_folder(tmp_path / "grades.csv").iterdir()}
+    assert now["wrong-forward_difference"]["secret"] == saved["wrong-forward_difference"]["secret"], "a regrade: its inputs"
+    assert now["wrong-forward_difference"]["result"] == saved["wrong-forward_difference"]["result"]
+    assert now["correct-folder"]["secret"] != saved["correct-folder"]["secret"], "new files: a new grading's secret"
 
 
 def test_the_saved_results_are_stale_once_any_module_of_the_grader_changes(monkeypatch, tmp_path):
@@ -364,7 +374,7 @@ def test_a_killed_run_resumes_without_grading_again_what_was_saved(a_class, firs
     gradebook, feedback = tmp_path / "grades.csv", tmp_path / "feedback"
     state = classroom.state_folder(gradebook)
     command = [sys.executable, "-m", "hwtools.grade", str(subset), "--gradebook", str(gradebook), "--feedback",
-               str(feedback), "--jobs", "1", "--time-limit", f"{TIME_LIMIT:g}"]
+               str(feedback), "--jobs", "1", "--time-limit", f"{BUDGET / BUDGET_FACTOR:g}"]  # BUDGET: none loops
     process = subprocess.Popen(command, cwd=KIT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
     deadline = time.monotonic() + 300
     while not (state.is_dir() and any(state.glob("*.json"))) and process.poll() is None and time.monotonic() < deadline:
@@ -377,7 +387,8 @@ def test_a_killed_run_resumes_without_grading_again_what_was_saved(a_class, firs
     for path in state.glob("*.json"):
         json.loads(path.read_text())  # written whole or not at all
 
-    report = classroom.grade_class(subset, gradebook, feedback, grader=grader, jobs=JOBS)
+    with Grader(KIT, time_limit=BUDGET / BUDGET_FACTOR, jobs=1) as same:  # the command's grading: its saved results hold
+        report = classroom.grade_class(subset, gradebook, feedback, grader=same, jobs=JOBS)
     assert report.reused == len(saved) and report.graded_now == 6 - len(saved)
     _, rows, _ = read_gradebook(gradebook)
     _, everyone, _ = read_gradebook(out / "grades.csv")
@@ -676,7 +687,7 @@ def test_a_class_of_big_answers_keeps_the_grader_under_600_mib(layout, tmp_path,
         own = dict(cheat, bodies={todo: f"{body}\n# big{number}" for todo, body in cheat["bodies"].items()})
         proof.build_cheat(layout, own, folder / f"big{number}", answer_key)
     code = ("import json, sys; from hwtools.grade import Grader; from hwtools.grade.instructor import classroom; "
-            f"grader = Grader({str(KIT)!r}, time_limit={TIME_LIMIT}, jobs=1); "
+            f"grader = Grader({str(KIT)!r}, time_limit={TIME_LIMIT}, jobs=1, budget={BUDGET}); "
             f"report = classroom.grade_class({str(folder)!r}, {str(tmp_path / 'g.csv')!r}, {str(tmp_path / 'fb')!r}, "
             "grader=grader, jobs=2); "
             "peak = [line.split()[1] for line in open('/proc/self/status') if line.startswith('VmHWM:')][0]; "

@@ -30,8 +30,8 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, blocks, kits
-from hwtools.grade.grader import read_answer_key
+from hwtools.grade import AUTO_POINTS, TODOS, TODO_BY_ID, blocks, judging, kits
+from hwtools.grade.grader import is_secret, read_answer_key
 from hwtools.grade.instructor.gradescope_autograder import BUNDLE_MARKER
 
 import containers
@@ -153,13 +153,17 @@ def container(request):
     return request.getfixturevalue("docker")
 
 
-def autograde(bundle, tmp_path, make_submission, container=None, sandbox=None):
+def autograde(bundle, tmp_path, make_submission, container=None, sandbox=None, metadata=None):
     """Lay out ``tmp_path`` as /autograder (the bundle in source/, run_autograder beside it), put a
-    submission in submission/, run run_autograder (in ``container``: environment variables; the
-    ``sandbox`` expected there, default user in a container, bwrap here); (results.json, stdout)."""
+    submission in submission/ (and ``metadata`` in submission_metadata.json), run run_autograder (in
+    ``container``: environment variables; the ``sandbox`` expected there, default user in a
+    container, bwrap here); (results.json, stdout)."""
     root = tmp_path / "autograder"
     (root / "source").mkdir(parents=True)
     (root / "results").mkdir()
+    if metadata is not None:
+        (root / "submission_metadata.json").write_text(json.dumps(metadata), encoding="utf-8")
+        (root / "submission_metadata.json").chmod(0o644)
     with zipfile.ZipFile(bundle) as archive:
         archive.extractall(root / "source")
         for info in archive.infolist():  # zipfile keeps no permission bits: put them back as Gradescope does
@@ -251,13 +255,37 @@ def test_the_bundled_requirements_cover_what_the_graded_code_imports():
 
 
 def test_a_correct_submission_earns_every_point(bundle, layout, tmp_path, container):
+    earlier = {"results": {"extra_data": {"grading": {"submission_id": 7, "files": "other files", "secret": "a" * 32}}}}
     data, stdout = autograde(bundle, tmp_path, lambda folder: kits.write_submission(layout, folder, others="reference"),
-                             container)
+                             container, metadata={"id": 7, "previous_submissions": [earlier]})
     assert data["score"] == AUTO_POINTS
     assert all(test["status"] == "passed" for test in data["tests"])
     assert data["extra_data"]["status"] in ("graded", "not isolated")
     assert "Grading your submission" in stdout  # the full report, for the instructor's log
     assert "grader memory limit: " in stdout
+    # the grading's secret: stored for the instructor (extra_data), new (other files than the earlier grading's)
+    grading = data["extra_data"]["grading"]
+    assert is_secret(grading["secret"]) and grading["secret"] != "a" * 32 and grading["submission_id"] == 7
+    assert not grading["reused"] and len(grading["files"]) == 64
+    shown = json.dumps({key: value for key, value in data.items() if key != "extra_data"}) + stdout
+    assert grading["secret"] not in shown
+    if os.geteuid() == 0:  # earlier results (and their secrets) out of a pool user's reach before any run
+        assert (tmp_path / "autograder" / "submission_metadata.json").stat().st_mode & 0o077 == 0
+
+
+def test_a_rerun_of_the_same_submission_reuses_its_stored_secret_and_nothing_else_does():
+    from hwtools.grade.instructor.gradescope_autograder import stored_secret
+
+    def earlier(submission_id, files, secret):
+        return {"results": {"extra_data": {"grading": {"submission_id": submission_id, "files": files, "secret": secret}}}}
+
+    listed = [earlier(6, "f" * 64, "1" * 32), earlier(7, "e" * 64, "2" * 32), earlier(7, "f" * 64, "3" * 32)]
+    assert stored_secret({"id": 7, "previous_submissions": listed}, "f" * 64) == "3" * 32  # this submission, its files
+    assert stored_secret({"id": 8, "previous_submissions": listed}, "f" * 64) is None  # a resubmission: a new grading
+    assert stored_secret({"id": 7, "previous_submissions": listed}, "d" * 64) is None
+    assert stored_secret({"id": 7, "previous_submissions": [earlier(7, "f" * 64, "not a secret")]}, "f" * 64) is None
+    for broken in ({}, {"id": 7}, {"id": 7, "previous_submissions": [None, {"results": []}, {"results": {}}]}, []):
+        assert stored_secret(broken, "f" * 64) is None
 
 
 def attack(name, layout, answer_key):
@@ -321,14 +349,15 @@ def test_nothing_a_run_leaves_in_a_shared_place_reaches_a_later_run(bundle, layo
     """2.2.1's run tries to leave its inputs (hidden ones too) in world-readable files in /tmp and
     /dev/shm; 2.2.2's run, later, finds nothing to show in its feedback: a run makes no file."""
     submission, cheat = attack("tmp_relay", layout, answer_key)
+    relay = f"hwgrade-relay-{proof.CHANNEL}"  # this test run's own (cheats/README.md)
     for place in ("/tmp", "/dev/shm"):
-        Path(place, "hwgrade-relay").unlink(missing_ok=True)
+        Path(place, relay).unlink(missing_ok=True)
     try:
         data, _ = autograde(bundle, tmp_path, submission, docker)
     finally:
-        left = [place for place in ("/tmp", "/dev/shm") if Path(place, "hwgrade-relay").exists()]
+        left = [place for place in ("/tmp", "/dev/shm") if Path(place, relay).exists()]
         for place in left:
-            Path(place, "hwgrade-relay").unlink()
+            Path(place, relay).unlink()
     assert "RELAYED" not in json.dumps(data), "a run read what an earlier run left"
     assert data["score"] == cheat["points"] == AUTO_POINTS and not left
 
@@ -417,12 +446,17 @@ def test_an_unreadable_submission_gets_zero_and_the_reason_at_once(bundle, tmp_p
 def test_students_read_their_status_without_the_sandbox_s_state():
     from hwtools.grade.instructor.gradescope_autograder import results_json
 
+    stopped = judging.judge_todo("2.2.1", None, {}, None, None, str, (5, 1024), [])
+    stopped.update(status="time limit", visible_status="time limit")  # stopped in its visible run
     result = {"notes": [], "total": {"auto_earned": 0.0}, "isolated": False, "isolation": "bwrap is missing",
-              "todos": []}
+              "todos": [stopped]}
     data = results_json(result, "timed out: 2.2.1; not isolated")
-    check_results(data)
     assert "Status: **timed out: 2.2.1**" in data["output"] and "isolated" not in data["output"]
     assert data["extra_data"] == {"status": "timed out: 2.2.1; not isolated", "isolated": False,
-                                  "isolation": "bwrap is missing", "sandbox": ""}
+                                  "isolation": "bwrap is missing", "sandbox": "", "seconds": 0.0, "grading": {}}
+    stopped["visible_status"] = "graded"  # stopped in its hidden phase: shown after publication only
+    assert results_json(result, "timed out: 2.2.1; not isolated")["output"].startswith("Status: **graded**")
+    result["todos"] = []
+    check_results(results_json(result, "graded"))
     assert results_json(result, "graded", sandbox="user")["extra_data"]["sandbox"] == "user"
     assert results_json(result, "not isolated")["output"].startswith("Status: **graded**")

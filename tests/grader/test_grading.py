@@ -12,6 +12,7 @@ import base64
 import json
 import os
 import re
+import secrets
 import shutil
 import subprocess
 import zlib
@@ -33,6 +34,9 @@ from process_watch import live_processes
 
 KIT = Path(__file__).resolve().parents[2]
 CHEATS = Path(__file__).resolve().parent / "cheats"
+# The name of this test run's own channel in the cheats that talk between runs (cheats/README.md): another test
+# run grading the same cheat at the same time (two gradings side by side) uses another.
+CHANNEL = secrets.randbelow(1 << 20)
 NATURAL = Path(__file__).resolve().parent / "natural_solutions"
 WRONG = KIT / "instructor" / "wrong_solutions"
 UNSEEN = Path(__file__).resolve().parent / "unseen_mistakes"
@@ -52,8 +56,8 @@ def grader():
 
 
 @pytest.fixture(scope="module")
-def short_grader():
-    with Grader(KIT, time_limit=SHORT_TIME_LIMIT, jobs=2) as shared:
+def short_grader():  # the limit stops the cheat's run, never the budget, whatever else runs on the machine
+    with Grader(KIT, time_limit=SHORT_TIME_LIMIT, jobs=2, budget=40 * SHORT_TIME_LIMIT) as shared:
         yield shared
 
 
@@ -345,7 +349,7 @@ def test_every_todo_has_a_solution_calling_each_earlier_todos_function_it_could_
 
 
 def parse_cheat(path):
-    text = path.read_text(encoding="utf-8")
+    text = path.read_text(encoding="utf-8").replace("CHANNEL", str(CHANNEL))
     header, *sections = re.split(r"^(# --- .*)$", text, flags=re.M)
     cheat = {"others": "stub", "expect": [], "bodies": {}, "files": {}, "prepend": {}, "links": [], "hardcode": [],
              "keeps": []}
@@ -507,8 +511,8 @@ def test_cheat_earns_nothing_it_should_not(request, layout, tmp_path, path, answ
         if entry["id"] in cheat["hardcode"]:  # right on every visible input, wrong on the hidden ones
             assert all(check["failed_on"] == "hidden" for check in entry["checks"]), entry
     leak_search.assert_nothing_leaks(result, secrets)
-    # and its own hidden inputs (drawn for its code)
-    leak_search.assert_nothing_leaks(result, leak_search.secrets_of(grader, layout, grader.case_sets(tmp_path)))
+    # and its own hidden inputs (drawn from its grading's secret)
+    leak_search.assert_nothing_leaks(result, leak_search.secrets_of(grader, layout, grader.case_sets(result["secret"])))
 
 
 def test_an_answer_that_would_inflate_is_refused_unread(layout, tmp_path, answer_key):
@@ -565,7 +569,7 @@ def test_feedback_shows_visible_failures_and_never_a_hidden_input(grader, layout
     assert entry["auto_earned"] == 0
     assert entry["first_failure"]["hidden"] is False and "x=" in entry["first_failure"]["input"]
     report = render(result)
-    for case_id, _, args in grader.case_sets(tmp_path)["1.2.1"].hidden:  # its own hidden inputs
+    for case_id, _, args in grader.case_sets(result["secret"])["1.2.1"].hidden:  # its own hidden inputs
         assert show(args["x"]) not in report, case_id
     for line in grader._scrub.lines:
         assert line not in report

@@ -8,6 +8,7 @@ cap's, a run stopped in its hidden phase).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 from pathlib import Path
@@ -115,28 +116,96 @@ def test_1_1_1_has_scores_near_the_decision_boundary_on_visible_and_hidden_input
             assert (near > 0).any() and (near < 0).any(), case_id
 
 
-def test_hidden_inputs_are_drawn_per_submission_and_again_the_same_for_the_same_code():
+def test_hidden_inputs_are_drawn_per_grading_and_again_the_same_for_its_secret():
     from hwtools.grade import Grader
-    from hwtools.grade.grader import KIT_ROOT
+    from hwtools.grade.grader import KIT_ROOT, is_secret
 
     grader = Grader(KIT_ROOT)
     try:
-        ours, theirs = [["values = 1 / (1 + np.exp(-z))"]], [["values = 0.5 * (1 + np.tanh(z / 2))"]]
-        first, again, other = grader.case_set("2.2.1", ours), grader.case_set("2.2.1", [list(ours[0])]), \
-            grader.case_set("2.2.1", theirs)
-        assert [c for c, _, _ in first.visible] == [c for c, _, _ in other.visible]
+        ours, again, other = "0" * 32, "0" * 32, "f" * 32
+        first, regrade, later = (grader.case_set("2.2.1", secret) for secret in (ours, again, other))
+        assert [c for c, _, _ in first.visible] == [c for c, _, _ in later.visible]
         visible = {c: show(args) for c, _, args in first.visible}
-        assert visible == {c: show(args) for c, _, args in other.visible}, "visible inputs are the same for everyone"
+        assert visible == {c: show(args) for c, _, args in later.visible}, "visible inputs are the same for everyone"
         shown = [show(args) for _, _, args in first.hidden]
-        assert shown == [show(args) for _, _, args in again.hidden], "a regrade of the same code draws the same"
-        drawn = [show(args) for _, _, args in other.hidden]
-        assert len(shown) == len(drawn) and all(a != b for a, b in zip(shown, drawn)), "other code, other inputs"
+        assert shown == [show(args) for _, _, args in regrade.hidden], "a regrade with the stored secret draws the same"
+        drawn = [show(args) for _, _, args in later.hidden]
+        assert len(shown) == len(drawn) and all(a != b for a, b in zip(shown, drawn)), "another grading, other inputs"
         # and the hand-chosen ones keep their structure: the hidden 1.1.1 ties still score exactly 0
-        for bodies in (ours, theirs):
-            *_, ties = [args for c, _, args in grader.case_set("1.1.1", bodies).hidden if c.startswith("1.1.1/equation-1/")]
+        for secret in (ours, other):
+            *_, ties = [args for c, _, args in grader.case_set("1.1.1", secret).hidden if c.startswith("1.1.1/equation-1/")]
             assert not np.einsum("ij,ij->i", ties["params"], ties["obs"]).any()
+        with pytest.raises(ValueError, match="secret"):
+            grader.grade(KIT_ROOT, todos=["2.2.1"], secret="not hex")
     finally:
         grader.close()
+    assert all(is_secret(secret) for secret in (ours, other)) and not is_secret("0" * 31) and not is_secret(None)
+
+
+def _stable_sigmoid(z):
+    with np.errstate(under="ignore"):
+        decay = np.exp(-np.abs(z))
+    return np.where(z >= 0, 1.0 / (1.0 + decay), decay / (1.0 + decay))
+
+
+def _key(z):
+    """How the typed-in 2.2.1 below looks an input up: its float64 bytes and shape."""
+    z = np.asarray(z, dtype=np.float64)
+    return z.tobytes().hex() + repr(z.shape)
+
+
+TYPED_IN = """import json, pathlib
+table = json.loads(pathlib.Path({path!r}).read_text())
+values = np.asarray(table.get(z.tobytes().hex() + repr(z.shape), np.zeros(z.shape).tolist()), dtype=np.float64)"""
+
+
+def test_typed_in_answers_for_an_earlier_grading_s_hidden_inputs_earn_nothing(tmp_path, monkeypatch):
+    """Issue 42's attack: a 2.2.1 that computes nothing, its answers typed in (here a table the block
+    reads, standing in for the page cache that carried them from another TODO's block: its code never
+    changes) for the visible inputs, which are public, and for the hidden inputs an earlier grading
+    sent to its hidden run (recorded here as a relay would carry them out). Graded again, it earns
+    nothing: each grading draws its hidden inputs from a secret of its own. Against the grader that
+    drew them from the TODO's code alone, the second grading earned 2 of 2. A regrade that passes the
+    first grading's secret back draws the first grading's inputs again."""
+    from hwtools.grade import Grader, blocks, kits
+    from hwtools.grade import grader as grading
+    from hwtools.grade.grader import KIT_ROOT
+
+    sent, real = [], broker.run_cases
+
+    def recorded(process, todo, visible, hidden, pool):
+        sent.extend(args for _, _, args in hidden)
+        return real(process, todo, visible, hidden, pool)
+
+    monkeypatch.setattr(grading.broker, "run_cases", recorded)
+    table = tmp_path / "answers.json"
+    typed = {_key(args["z"]): _stable_sigmoid(np.asarray(args["z"], dtype=np.float64)).tolist()
+             for _, _, args in checks.case_set("2.2.1").visible}
+    table.write_text(json.dumps(typed), encoding="utf-8")
+    kits.write_submission(blocks.load_layout(KIT_ROOT), tmp_path / "kit", {"2.2.1": TYPED_IN.format(path=str(table))},
+                          others="reference")
+    with Grader(KIT_ROOT, isolation="none", time_limit=20) as grader:  # the table is the stand-in relay: readable
+        first, = grader.grade(tmp_path / "kit", todos=["2.2.1"])["todos"]
+    assert all(check["failed_on"] != "visible" for check in first["checks"]), first  # the visible ones typed in
+    earlier, sent[:] = list(sent), []
+    assert earlier, "the first grading sent hidden inputs"
+    typed.update({_key(args["z"]): _stable_sigmoid(np.asarray(args["z"], dtype=np.float64)).tolist()
+                  for args in earlier})
+    table.write_text(json.dumps(typed), encoding="utf-8")  # what the relay carried, typed in
+    with Grader(KIT_ROOT, isolation="none", time_limit=20) as grader:  # a later grading (another process, a resubmission)
+        result = grader.grade(tmp_path / "kit", todos=["2.2.1"])
+        second, = result["todos"]
+        assert second["auto_earned"] == 0, second
+        assert all(check["failed_on"] == "hidden" for check in second["checks"]), second
+        assert sent and all(_key(args["z"]) not in {_key(e["z"]) for e in earlier} for args in sent), "none drawn again"
+        sent[:] = []
+        regrade = grader.grade(tmp_path / "kit", todos=["2.2.1"], secret=result["secret"])
+        assert [_key(args["z"]) for args in sent] == [_key(args["z"]) for args in _hidden_sent_of(grader, result)]
+        assert regrade["todos"][0]["checks"] == second["checks"], "a regrade of the same code: the same verdicts"
+
+
+def _hidden_sent_of(grader, result):
+    return [args for _, _, args in grader.case_set("2.2.1", result["secret"]).hidden]
 
 
 def test_every_visible_run_of_a_submission_comes_before_any_hidden_run(tmp_path, monkeypatch):
@@ -181,7 +250,7 @@ def test_a_visible_run_s_notes_reach_the_visible_view_and_a_hidden_run_s_do_not(
     kits.write_submission(layout, tmp_path, {"2.2.1": "values = 0.5 * (1 + np.tanh(z / 2))"}, others="stub")
     with Grader(KIT_ROOT) as grader:
         entry, = grader.grade(tmp_path, todos=["2.2.1"])["todos"]
-    assert entry["auto_earned"] == 2 and grader.case_set("2.2.1", [["values = 0.5 * (1 + np.tanh(z / 2))"]]).hidden
+    assert entry["auto_earned"] == 2
     assert {"a note of the visible run", "a note of the hidden run"} <= set(entry["notes"]), entry["notes"]
     assert judging.visible_view(entry)["notes"] == ["a note of the visible run"]
     for name, shown in _views(entry).items():
@@ -208,7 +277,7 @@ def test_the_relay_hidden_cheat_shows_no_hidden_input_under_the_user_fallback(tm
     folder, python = containers.user_sandbox_python()
     layout, submission = blocks.load_layout(KIT_ROOT), tmp_path / "submission"
     proof.build_cheat(layout, proof.parse_cheat(proof.CHEATS / "relay_hidden.txt"), submission, None)
-    relays = [Path(place, "hwgrade-relay-hidden") for place in ("/tmp", "/var/tmp", "/dev/shm", "/run/lock")]
+    relays = [Path(place, f"hwgrade-relay-hidden-{proof.CHANNEL}") for place in ("/tmp", "/var/tmp", "/dev/shm", "/run/lock")]
     seen, stop = set(), threading.Event()
 
     def watch():  # a file the cheat made would live at least as long as its run
@@ -224,8 +293,9 @@ def test_the_relay_hidden_cheat_shows_no_hidden_input_under_the_user_fallback(tm
                 with Grader(KIT_ROOT, python=python, isolation="user", time_limit=10) as grader:
                     assert grader.sandbox.kind == "user", grader.sandbox.how
                     grader.wrong_solutions = []  # no known mistake to name: their runs are no part of this proof
-                    result = grader.grade(submission, todos=["2.2.1", "2.2.2"])
-                    gradings.append((result, leak_search.secrets_of(grader, layout, grader.case_sets(submission))))
+                    regrade = gradings[0][0]["secret"] if gradings else None  # the second: the first's inputs again
+                    result = grader.grade(submission, todos=["2.2.1", "2.2.2"], secret=regrade)
+                    gradings.append((result, leak_search.secrets_of(grader, layout, grader.case_sets(result["secret"]))))
         assert not seen, f"the cheat made {sorted(seen)}"
         for result, secrets in gradings:
             leak_search.assert_nothing_leaks(result, secrets)
@@ -238,3 +308,59 @@ def test_the_relay_hidden_cheat_shows_no_hidden_input_under_the_user_fallback(tm
         for path in relays:
             path.unlink(missing_ok=True)
         shutil.rmtree(folder, ignore_errors=True)
+
+
+HIDDEN_ONLY = """import hashlib
+values = np.where(z >= 0, 1.0 / (1.0 + np.exp(-np.abs(z))), np.exp(-np.abs(z)) / (1.0 + np.exp(-np.abs(z))))
+if hashlib.sha256(z.tobytes() + repr(z.shape).encode()).hexdigest() not in {visible!r}:
+{misbehave}"""
+MISBEHAVIOURS = {
+    "times out": "    while True:\n        pass",
+    "fails": "    values = values + 0.25",
+    "takes longer": "    import time\n    time.sleep(0.3)",
+}
+
+
+def before_publication(result):
+    """What a student reads of ``result`` before the grades are published: results.json but for its
+    ``score`` (Gradescope shows no total while a test is not yet visible: "If test cases are hidden,
+    students will not be able to see their total score", its specification), the tests that are not
+    ``visible`` and ``extra_data`` (stored for instructors); and the class feedback's status line and
+    notes, which come before its points."""
+    from hwtools.grade.instructor.class_feedback import feedback_markdown
+    from hwtools.grade.instructor.gradebook import StudentResult, status_of
+    from hwtools.grade.instructor.gradescope_autograder import results_json
+
+    data = results_json(result, status_of(result), seconds=result["seconds"])
+    shown = {key: value for key, value in data.items() if key not in ("score", "tests", "extra_data")}
+    shown["tests"] = [test for test in data["tests"] if test.get("visibility", data.get("visibility")) == "visible"]
+    shown["class feedback"] = feedback_markdown(StudentResult("s", status_of(result), result)).split("Automatic points")[0]
+    return shown
+
+
+def test_what_a_hidden_phase_does_changes_nothing_shown_before_publication(tmp_path):
+    """Issue 42.3: a 2.2.1 right on every visible input that, on its hidden inputs only, runs until
+    its time limit, answers wrongly or sleeps 0.3 s each, gives before publication exactly what a
+    right one gives: the status line (before: "timed out: 2.2.1" for the first), the top-level
+    output and notes, the visible tests, no run time. After publication its points and its TODO's
+    test say what happened."""
+    from hwtools.grade import Grader, blocks, kits
+    from hwtools.grade.grader import KIT_ROOT
+
+    visible = sorted(hashlib.sha256(np.asarray(args["z"], dtype=np.float64).tobytes()
+                                    + repr(np.shape(args["z"])).encode()).hexdigest()
+                     for _, _, args in checks.case_set("2.2.1").visible)
+    layout, shown = blocks.load_layout(KIT_ROOT), {}
+    with Grader(KIT_ROOT, time_limit=3, budget=120) as grader:  # a loaded machine slows runs: no budget time-out
+        for name, misbehave in {"right": "    pass", **MISBEHAVIOURS}.items():
+            code = HIDDEN_ONLY.format(visible=set(visible), misbehave=misbehave)
+            kits.write_submission(layout, tmp_path / name, {"2.2.1": code}, others="reference")
+            result = grader.grade(tmp_path / name, todos=["2.2.1"])
+            entry, = result["todos"]
+            assert entry["auto_earned"] == {"times out": 0, "fails": 0}.get(name, 2), (name, entry)
+            shown[name] = (before_publication(result), entry, result["seconds"])
+    assert shown["times out"][1]["status"] == "time limit" and shown["fails"][1]["checks"][0]["failed_on"] == "hidden"
+    assert shown["takes longer"][2] > shown["right"][2] + 1.0, "the hidden phase took longer"
+    for name in MISBEHAVIOURS:
+        assert shown[name][0] == shown["right"][0], name
+    assert "Status: **graded**" in shown["times out"][0]["output"]

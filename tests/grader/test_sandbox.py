@@ -506,12 +506,30 @@ def test_the_orphans_of_a_user_run_are_reaped_so_its_user_can_fork_again(user, t
     assert not adopted_zombies()
 
 
+def at_once(box, kits_, budgets):
+    """Runs of ``kits_`` started side by side (as a grader's threads start them), each with its grading's
+    budget: their outcomes."""
+    outcomes = [None] * len(kits_)
+
+    def one(index):
+        process = box.start(kits_[index], budget=budgets[index])
+        outcomes[index] = broker.run_cases(process, None, [("c0", "sigmoid", {"z": np.array([0.0])})], [], None)
+
+    threads = [threading.Thread(target=one, args=(index,)) for index in range(len(kits_))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=120)
+    return outcomes
+
+
 @pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
-def test_two_runs_of_student_code_never_overlap(mode, request, tmp_path):
-    """Runs started side by side (as a grader's threads start them) take turns: the second one's code
-    starts only after every process of the first one is gone (its child too), so no lock, inotify
-    watch or shared timing can carry anything between them."""
-    box = request.getfixturevalue(mode)
+def test_two_runs_of_one_grading_never_overlap(mode, request, tmp_path):
+    """A grading's runs, started side by side (as a grader's threads start them), take its turn: the
+    second one's code starts only after every process of the first one is gone (its child too), so
+    no lock, inotify watch or shared timing can carry anything between two runs of one grading
+    (docs/grading.md, what must still be ordered)."""
+    box, grading = request.getfixturevalue(mode), sandbox.Budget(600)
     two = [make_kit(tmp_path / name, textwrap.dedent("""
         started = time.time()
         if os.fork() == 0:  # a child that would live on, holding a lock
@@ -521,38 +539,29 @@ def test_two_runs_of_student_code_never_overlap(mode, request, tmp_path):
         time.sleep(1.0)
         values = np.array([started, time.time()])
     """)) for name in ("a", "b")]
-    outcomes = [None, None]
-    threads = [threading.Thread(target=lambda index=index: outcomes.__setitem__(index, run(two[index], box)))
-               for index in range(2)]
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join(timeout=120)
-    (a_start, a_end), (b_start, b_end) = (values(outcome).tolist() for outcome in outcomes)
-    assert a_end <= b_start or b_end <= a_start, "two runs of student code overlapped"
+    (a_start, a_end), (b_start, b_end) = (values(outcome).tolist() for outcome in at_once(box, two, [grading] * 2))
+    assert a_end <= b_start or b_end <= a_start, "two runs of one grading overlapped"
 
 
-def test_runs_of_two_grading_processes_never_overlap():
-    """Two graders on one machine (two class runs, a test run beside another) take turns as well: a
-    run begins only once another process's run has ended."""
-    holder = subprocess.Popen([sys.executable, "-c", textwrap.dedent("""
-        import time
-        from hwtools.grade import sandbox
-        sandbox._UNTRUSTED_RUN.acquire()
-        print("holding", flush=True)
-        time.sleep(2)
-        print(time.time(), flush=True)
-        sandbox._UNTRUSTED_RUN.release()
-    """)], stdout=subprocess.PIPE, text=True, cwd=KIT)
-    try:
-        assert holder.stdout.readline() == "holding\n"
-        sandbox._UNTRUSTED_RUN.acquire()
-        began = time.time()
-        sandbox._UNTRUSTED_RUN.release()
-        assert began >= float(holder.stdout.readline()), "a run began while another process's run was alive"
-    finally:
-        holder.kill()
-        holder.wait()
+def test_the_runs_of_two_gradings_run_side_by_side(plain, tmp_path):
+    """Two gradings (two submissions of a class, two grading processes) do not wait for each other:
+    each of two runs, one per grading, sees the other one alive. What a channel
+    between them could carry is worth nothing, since every grading draws its own hidden inputs
+    (docs/grading.md); before, one run at a time on the whole machine kept every submission waiting."""
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    two = [make_kit(tmp_path / name, textwrap.dedent(f"""
+        mine, other = {str(marks / name)!r}, {str(marks / ("b" if name == "a" else "a"))!r}
+        open(mine, "w").close()
+        end = time.time() + 30
+        while not os.path.exists(other) and time.time() < end:
+            time.sleep(0.01)
+        values = np.array([float(os.path.exists(other))])
+        time.sleep(0.2)
+        os.unlink(mine)
+    """)) for name in ("a", "b")]
+    outcomes = at_once(plain, two, [sandbox.Budget(600), sandbox.Budget(600)])  # each grading's own turn
+    assert [values(outcome).tolist() for outcome in outcomes] == [[1.0], [1.0]], "a grading waited for another"
 
 
 def test_with_a_reference_and_no_sandbox_no_student_code_runs(monkeypatch, tmp_path):

@@ -69,7 +69,7 @@ class CaseSet:
     todo: str
     visible: list = field(default_factory=list)
     hidden: list = field(default_factory=list)
-    draw: str = ""  # what the hidden inputs were drawn from besides the instructor's seed (a code digest)
+    draw: str = ""  # what the hidden inputs were drawn from besides the instructor's seed: a grading's secret
 
 
 def cases_of(behaviour):
@@ -81,7 +81,7 @@ def cases_of(behaviour):
 
 def case_set(todo, hidden_module=None, draw=""):
     """The cases of ``todo``: ids "TODO/key/vN" (visible) and "TODO/key/hN" (hidden, from ``hidden_module``,
-    drawn for ``draw``: the grader passes the digest of a submission's code for ``todo``)."""
+    drawn for ``draw``: the grader passes the secret of one grading, ``Grader.case_set``)."""
     cases = CaseSet(todo, draw=draw)
     for behaviour in BEHAVIOURS_BY_TODO[todo]:
         if behaviour.judged_on:

@@ -9,6 +9,7 @@ import re
 
 from hwtools.grade import blocks
 from hwtools.grade.feedback import failure_words, points
+from hwtools.grade.instructor.gradebook import status_of
 from hwtools.grade.judging import visible_view
 from hwtools.grade.safe_text import printable
 from hwtools.grade.submissions import KIT_DEPTH, MAX_PY_BYTES, size_text
@@ -98,10 +99,13 @@ UNGRADED_HELP = (f"What the grader reads: your `{blocks.PACKAGE}/` folder (with 
 
 def feedback_markdown(student_result):
     """The feedback file of one student (Markdown): status, points per TODO, what was checked and
-    the first failing visible check per TODO; never a hidden input."""
+    the first failing visible check per TODO; never a hidden input. Its status line, like
+    results.json's, reads the visible runs alone (``status_of(..., visible=True)``); the points and
+    what the hidden inputs did (a check failed on one, a run stopped in its hidden phase) come
+    under them: the file gives the grade, so it goes to the student with the grades."""
     lines = [f"# Homework 1, automatic grading: {md_escape(student_result.student)}", ""]
-    lines.append(f"Status: **{md_escape(student_result.status)}**")
     result = student_result.result
+    lines.append(f"Status: **{md_escape(status_of(result, visible=True) if result else student_result.status)}**")
     if result is None:
         lines += ["", "Automatic points: **0**. Nothing of this submission was run.", "", UNGRADED_HELP]
         return "\n".join(lines) + "\n"

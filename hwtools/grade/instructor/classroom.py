@@ -21,15 +21,17 @@ Canvas import (``canvas.py``: with ``--roster``, a row per student of Canvas's o
 feedback (``class_feedback.py``), with a progress line (``class_progress.py``).
 
 Submissions are read, prepared and judged side by side (``--jobs``, default one per CPU) by ONE
-``Grader`` (the reference's answers are computed once for the class), while their student code
-runs one run at a time, each in its own sandbox (``sandbox.py``: no two runs of student code, of
-one submission or of two, overlap). Each student's
+``Grader`` (the reference's answers are computed once for the class), their runs of student code
+side by side, each in its own sandbox (``sandbox.py``: one run of a submission at a time). Each student's
 result is saved as it finishes (``.<gradebook name>-state/<student>.json`` next to the
 gradebook, keyed by a hash of the submission's files and of everything that decides the
 points: the reference, the hidden checks, the grader's code and its limits), so an
 interrupted run resumes where it stopped, and a rerun grades only what changed (delete that
-folder to grade everything again). The gradebook holds no time stamps: grading the same folder
-twice writes the same bytes.
+folder to grade everything again). The saved file also keeps the grading's secret (the hidden
+inputs are drawn from it, ``Grader.grade``) and the hash of the files it graded: a regrade of the
+same files (the grader or a limit changed) draws the same hidden inputs; new files, a new secret.
+The secret never reaches the gradebook or the feedback. The gradebook holds no time stamps:
+grading the same folder twice writes the same bytes.
 
 Time limits: the grader runs each TODO of a submission as one sandboxed run (10 runs), and
 ``--time-limit`` L bounds each run's CPU time (a wall-clock backstop of 3L + 10 s ends code that only
@@ -58,7 +60,7 @@ from hwtools import markers
 from hwtools.grade import kits
 from hwtools.grade.instructor import class_summary
 from hwtools.grade.instructor.class_feedback import feedback_markdown
-from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions
+from hwtools.grade.grader import HIDDEN_CHECKS, KIT_ROOT, Grader, GradingError, has_solutions, is_secret
 from hwtools.grade.instructor.canvas import RosterError, canvas_import, read_roster
 from hwtools.grade.instructor.gradebook import StudentResult, gradebook_text, status_of
 from hwtools.grade.instructor.class_progress import Progress
@@ -135,10 +137,21 @@ class StateStore:
             return None
         return data
 
-    def save(self, student, digest, status, result, notes):
+    def secret(self, student, digest):
+        """The secret of the saved grading of the same files (``digest``) as this student's, under any
+        grading fingerprint (a regrade), or None (no such grading: a new secret is drawn)."""
+        try:
+            data = json.loads(self._path(student).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return None
+        if not isinstance(data, dict) or data.get("student") != student or data.get("files") != digest:
+            return None
+        return data["secret"] if is_secret(data.get("secret")) else None
+
+    def save(self, student, digest, status, result, notes, secret=None):
         self.folder.mkdir(parents=True, exist_ok=True)
         data = {"version": STATE_VERSION, "student": student, "key": self.key(digest), "status": status,
-                "notes": notes, "result": result}
+                "notes": notes, "result": result, "files": digest, "secret": secret}
         _write_atomically(self._path(student), json.dumps(data, indent=1, sort_keys=True) + "\n")
 
 
@@ -157,11 +170,13 @@ def _write_atomically(path, text):
 
 
 def _public(result, student):
-    """The result with the paths of this machine replaced by what a student may read."""
+    """The result with the paths of this machine replaced by what a student may read, and without
+    the grading's secret (the state keeps it beside the result)."""
     result = dict(result)
     result["submission"] = student
     result["reference"] = "the instructor's reference solution"
     result.pop("seconds", None)
+    result.pop("secret", None)
     return result
 
 
@@ -179,10 +194,12 @@ def grade_one(grader, path, student, kit_names, store=None):
                 saved = store.load(student, opened.digest)
                 if saved is not None:
                     return StudentResult(student, saved["status"], saved["result"], saved["notes"], reused=True)
-            result = _public(grader.grade(opened.kit), student)
+            secret = store.secret(student, opened.digest) if store is not None else None  # a regrade: the same inputs
+            graded = grader.grade(opened.kit, secret=secret)
+            result = _public(graded, student)
             status = status_of(result)
             if store is not None and "grader error" not in status:  # a grader's own failure is tried again
-                store.save(student, opened.digest, status, result, opened.notes)
+                store.save(student, opened.digest, status, result, opened.notes, graded.get("secret"))
             return StudentResult(student, status, result, opened.notes, seconds=time.monotonic() - started)
     except Unusable as unusable:
         return StudentResult(student, unusable.text, seconds=time.monotonic() - started)
@@ -237,8 +254,7 @@ def grade_class(submissions, gradebook, feedback, reference=None, *, jobs=None, 
     """Grade every submission in the folder ``submissions`` against ``reference`` (the instructor's
     kit) and write the gradebook CSV ``gradebook`` and one Markdown file per student in ``feedback``.
 
-    ``jobs``: submissions read, prepared and judged side by side (default: one per CPU); their runs of
-    student code take turns (``sandbox.py``).
+    ``jobs``: submissions graded side by side (default: one per CPU), their runs too (``sandbox.py``).
     ``grader``: a ``Grader`` to use (its reference answers are computed once, for the whole
     class); else one is made with ``grader_options`` (python, isolation, time_limit,
     memory_limit). ``progress``: a text stream for the progress line (None: silent). ``roster`` (a

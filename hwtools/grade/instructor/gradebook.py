@@ -38,10 +38,13 @@ class StudentResult:
         return next((entry["auto_earned"] for entry in self.result["todos"] if entry["id"] == todo), 0.0)
 
 
-def status_of(result):
+def status_of(result, visible=False):
     """The gradebook's status of a graded result: TODOs that timed out, TODOs the grader failed on
-    (``grader_error``: not saved, a rerun tries again), and whether it ran unsandboxed."""
-    timed_out = [entry["id"] for entry in result["todos"] if entry["status"] == "time limit"]
+    (``grader_error``: not saved, a rerun tries again), and whether it ran unsandboxed. ``visible``:
+    as the visible runs alone show it (``visible_status``: a run stopped in its hidden phase is not
+    named), for what a student reads before the grades are published."""
+    key = "visible_status" if visible else "status"
+    timed_out = [entry["id"] for entry in result["todos"] if entry.get(key, entry["status"]) == "time limit"]
     failed = [entry["id"] for entry in result["todos"] if entry.get("grader_error")]
     parts = [f"timed out: {', '.join(timed_out)}"] if timed_out else []
     parts += [f"grader error: {', '.join(failed)}"] if failed else []

@@ -21,7 +21,18 @@ unsafe paths and oversized files refused) and graded by the sandboxed ``Grader``
   inputs (hidden inputs are never shown, only that a check failed on one).
 
 The top-level ``score`` is the automatic total; the points graded by hand are left to Gradescope's
-own rubric. ``stdout`` (the full text report, for the instructor) is ``hidden``.
+own rubric. ``stdout`` (the full text report, for the instructor) is ``hidden``. What a student reads
+before the grades are published (the top-level ``output`` with its status line and notes, the
+visible tests' names and outputs) is built from the visible runs alone: a run that timed out,
+failed or took longer in its hidden phase changes none of it. No run time is shown (how long the
+grading took depends on the hidden runs): ``extra_data`` (instructors only) keeps the seconds.
+
+The hidden inputs are drawn from a secret of this grading (``Grader.grade``), kept in
+``extra_data["grading"]`` with the submission's id and the hash of its files. A rerun of the
+autograder on the same submission reuses it where Gradescope lists that submission's earlier
+results in ``submission_metadata.json`` (``stored_secret``); any other grading, a resubmission of
+the same files included, draws a new one. That file is made root's alone before any student code
+runs (under the user fallback a run may read every file other users may read).
 
 Once the reference and the hidden checks are in memory, the bundle's copies of ``hwlib/`` and
 ``instructor/`` are deleted from ``source/`` (only where the bundle's marker file says it is the
@@ -60,7 +71,7 @@ from hwtools.grade.judging import visible_view
 from hwtools.grade.instructor.gradebook import GRADED, NOT_ISOLATED, status_of
 from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.grade.feedback import render
-from hwtools.grade.grader import Grader, GradingError
+from hwtools.grade.grader import Grader, GradingError, is_secret
 from hwtools.grade.sandbox import DEFAULT_TIME_LIMIT, limit_own_memory
 from hwtools.todos import TODOS
 
@@ -71,7 +82,7 @@ SCRUBBED = ("hwlib", "instructor")  # deleted from the bundle's source once load
 def autograder_paths(root=None):
     root = Path(root or os.environ.get("AUTOGRADER_ROOT") or "/autograder")
     return {"root": root, "source": root / "source", "submission": root / "submission",
-            "results": root / "results" / "results.json"}
+            "results": root / "results" / "results.json", "metadata": root / "submission_metadata.json"}
 
 
 def _score(value):
@@ -112,14 +123,17 @@ FAILED = ("The autograder failed while grading your submission, so it earns 0 au
           "instructor; submitting again may help.")
 
 
-def results_json(result, status, notes=(), seconds=0.0, sandbox="", fault=None):
+def results_json(result, status, notes=(), seconds=0.0, sandbox="", fault=None, grading=None):
     """Gradescope's results.json (a dict) for one submission: ``result`` is the grader's dict, or
-    None when the submission could not be graded (``status`` says why); ``sandbox``: the kind of
-    isolation (bwrap, user or none); ``fault``: the autograder's own message when it could not
-    grade (misconfigured, failed), shown instead of advice on the submission."""
+    None when the submission could not be graded (``status`` says why: the instructor's, in
+    ``extra_data``); ``sandbox``: the kind of isolation (bwrap, user or none); ``fault``: the
+    autograder's own message when it could not grade (misconfigured, failed), shown instead of
+    advice on the submission; ``grading``: what a regrade needs (the secret; ``extra_data``)."""
     manual = sum(todo.manual for todo in TODOS)
-    # the student's status: whether the sandbox worked is the instructor's business (extra_data, stdout)
-    shown = "; ".join(part for part in status.split("; ") if part != NOT_ISOLATED) or GRADED
+    # the student's status: the visible runs' alone (a hidden run's time-out is shown after publication, in
+    # its TODO's test); whether the sandbox worked is the instructor's business (extra_data, stdout)
+    shown = status_of(result, visible=True) if result is not None else status
+    shown = "; ".join(part for part in shown.split("; ") if part != NOT_ISOLATED) or GRADED
     lines = [f"Status: **{md_escape(shown)}**", ""]
     if fault is not None:
         lines.append(fault)
@@ -135,15 +149,43 @@ def results_json(result, status, notes=(), seconds=0.0, sandbox="", fault=None):
         lines += [""] * bool(notes) + [f"- note: {md_escape(note)}" for note in notes]
     data = {
         "score": _score(result["total"]["auto_earned"]) if result else 0.0,
-        "execution_time": round(seconds, 1),
         "output": "\n".join(lines).rstrip() + "\n",
         "output_format": "md",
         "stdout_visibility": "hidden",
         "tests": _tests(result),
         "extra_data": {"status": status, "isolated": bool(result and result["isolated"]),
-                       "isolation": result["isolation"] if result else "", "sandbox": sandbox},
+                       "isolation": result["isolation"] if result else "", "sandbox": sandbox,
+                       "seconds": round(seconds, 1), "grading": grading or {}},
     }
     return data
+
+
+def stored_secret(metadata, files):
+    """The secret of an earlier grading of this very submission (``metadata["id"]``, the same files
+    ``files``) among the earlier results Gradescope lists in ``submission_metadata.json``, or None."""
+    if not isinstance(metadata, dict) or metadata.get("id") is None:
+        return None
+    for earlier in metadata.get("previous_submissions") or []:
+        results = earlier.get("results") if isinstance(earlier, dict) else None
+        extra = results.get("extra_data") if isinstance(results, dict) else None
+        grading = extra.get("grading") if isinstance(extra, dict) else None
+        if (isinstance(grading, dict) and grading.get("submission_id") == metadata["id"]
+                and grading.get("files") == files and is_secret(grading.get("secret"))):
+            return grading["secret"]
+    return None
+
+
+def read_metadata(path):
+    """``submission_metadata.json`` as a dict ({} when there is none or it cannot be read), made
+    root's alone first where the autograder is root: earlier results in it hold their secrets."""
+    try:
+        if os.geteuid() == 0 and path.is_file() and not path.is_symlink():
+            os.chown(path, 0, 0)
+            path.chmod(0o600)
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def _scrub(source):
@@ -194,11 +236,12 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
     started = time.monotonic()
     paths = autograder_paths(root)
     time_limit = float(time_limit or os.environ.get("AUTOGRADER_TIME_LIMIT") or DEFAULT_TIME_LIMIT)
+    metadata = read_metadata(paths["metadata"])  # before anything runs: root's alone from here on
     if os.geteuid() == 0:  # before anything runs: what runs later is root's to change, source/ root's alone
         changed = harden(paths["root"], paths["source"])
         out.write(f"source/ is root's alone; {len(changed)} path(s) under {paths['root']} made unwritable to other "
                   "users\n")
-    grader = Grader(paths["source"], python=python, isolation=isolation, time_limit=time_limit)  # one run at a time
+    grader = Grader(paths["source"], python=python, isolation=isolation, time_limit=time_limit)
     box = grader.sandbox
     kit_names = kit_file_names(grader.layout)
     scrubbed = _scrub(paths["source"])
@@ -215,10 +258,13 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
         write_results(paths["results"], data)
         out.flush()
         return data
-    fault = None
+    fault, grading = None, None
     try:
         with open_submission(paths["submission"], kit_names) as opened:
-            result = grader.grade(opened.kit)
+            secret = stored_secret(metadata, opened.digest)  # a rerun of this submission: the same hidden inputs
+            result = grader.grade(opened.kit, secret=secret)
+            grading = {"secret": result.pop("secret", None), "submission_id": metadata.get("id"),
+                       "files": opened.digest, "reused": secret is not None}
             result["submission"], result["reference"] = "your submission", "the reference solution"
             status, notes = status_of(result), opened.notes
     except Unusable as unusable:
@@ -232,7 +278,8 @@ def run(root=None, time_limit=None, python=None, isolation="auto", out=sys.stdou
         if not kill_all_users():
             raise GradingError("a process of the sandbox's users could not be killed: no results written")
         out.write("user sandbox: every process of the sandbox's users killed before results.json was written\n")
-    data = results_json(result, status, notes, time.monotonic() - started, sandbox=box.kind, fault=fault)
+    data = results_json(result, status, notes, time.monotonic() - started, sandbox=box.kind, fault=fault,
+                        grading=grading)
     write_results(paths["results"], data)
     out.write(f"status: {status}; score {data['score']:g}\n")
     if result is not None:

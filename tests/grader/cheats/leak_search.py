@@ -23,10 +23,12 @@ from hwtools.grade.feedback import render
 
 
 def outputs_of(result):
-    """Everything a student may read of ``result``: the text report, the JSON, the class feedback
-    file and Gradescope's results.json."""
+    """Everything a student may read of ``result``: the text report, the JSON (as a class keeps it,
+    without the grading's secret, the instructor's), the class feedback file and Gradescope's
+    results.json."""
     student = gradebook.StudentResult("student", gradebook.status_of(result), result)
-    return [render(result), json.dumps(result), class_feedback.feedback_markdown(student),
+    public = {key: value for key, value in result.items() if key != "secret"}
+    return [render(result), json.dumps(public), class_feedback.feedback_markdown(student),
             json.dumps(gradescope_autograder.results_json(result, gradebook.status_of(result)))]
 
 
@@ -69,7 +71,7 @@ def decodings(texts, rounds=3):
 def secrets_of(grader, layout, case_sets=None):
     """What no output may hold: the lines of the reference's blocks (those not also in the kit's
     public code) and the hidden inputs' numbers (as text, strong formats, and as float64 bytes) of
-    ``case_sets`` (a submission's: ``grader.case_sets(submission)``; default the grader's own)."""
+    ``case_sets`` (a grading's: ``grader.case_sets(result["secret"])``; default the grader's own)."""
     public = "\n".join(kits.composite_files(layout, {}, set()).values())
     lines = [line for line in grader._scrub.lines if line not in public]
     strong, weak, raw = set(), [], set()
@@ -96,6 +98,7 @@ def _floats(value):
 def assert_nothing_leaks(result, secrets):
     for data in decodings(outputs_of(result)):
         text = data.decode("utf-8", "replace")
+        assert not result.get("secret") or result["secret"] not in text, "the grading's secret reached an output"
         line = next((line for line in secrets["lines"] if line in text), None)
         assert line is None, f"a line of the reference solution reached an output: {line!r}"
         number = next((number for number in secrets["strong"] if number in text), None)
