@@ -211,7 +211,8 @@ def check_lines(entry, details=False):
         entry = {**entry, "first_failure": {"check": failing[0][0]["check"], "hidden": False, **first}}
     raised = [failure["actual"] for _, failure in failing if failure and IMPORT_FAILED in failure["actual"]]
     if raised and not entry.get("mistake"):  # the kit stops while imported: every check fails the same way
-        head = [f"TODO {todo} fails: {raised[0]}"]
+        error, _, where_raised = raised[0].partition(f" ({IMPORT_FAILED}")  # line 2 says where: never cut off
+        head = [f"TODO {todo} fails: {error}"] + ([f"({IMPORT_FAILED}{where_raised}"] if where_raised else [])
     else:
         head = first_lines(entry, "fails")
     # Line 1 in one line (said in full with details=True), so that line 2 is the reason; the rest wrapped at words.

@@ -167,6 +167,6 @@ def test_every_limit_goes_through_one_helper_that_takes_a_refusal_as_no_limit(mo
 
     monkeypatch.setattr(resource, "setrlimit", refuse)
     assert worker.set_limit("RLIMIT_AS", 2**30) is None and sandbox.limit_own_memory() is None
-    worker._set_limits(60, 2**30)  # the worker goes on without them
+    worker._set_limits(60, 2**30, 16)  # the worker goes on without them
     monkeypatch.setitem(sys.modules, "resource", None)  # Windows
     assert worker.set_limit("RLIMIT_CPU", 60) is None
