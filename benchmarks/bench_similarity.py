@@ -10,7 +10,9 @@ variables, reordered lines, added comments or one changed constant, in turn), zi
 hand in, and times the command in a fresh process (wall and CPU seconds, peak memory). Then:
 
 * recall: the share of the planted pairs among each TODO's 10 best pairs (1.3.3, one constant,
-  left out), the worst TODO and over all TODOs;
+  left out), the worst TODO and over all TODOs, of the pairs a TODO can show: a pair one of whose
+  blocks is only the handout's equations (``similarity_class.handout_only``) is not counted there,
+  and how many were left out is printed;
 * flags among independent students: pair-TODOs flagged that are no planted pair, of all pairs;
 * the kit's natural solutions (``tests/grader/natural_solutions/``, each a submission of its own,
   ``_crlf`` twins left out): pairs of one TODO's solutions flagged, of all such pairs.
@@ -85,13 +87,17 @@ def main():
             submissions = zipped(scratch / f"class{seed}", scratch / f"zips{seed}")
             wall, cpu, peak = timed_command(submissions, scratch / f"out{seed}")
             report = similarity.similarity(submissions, layout)
-            recall = {todo: found for todo, found in similarity_class.recall(report, planted).items() if todo != "1.3.3"}
+            recall = {todo: found for todo, found in similarity_class.recall(report, planted, layout).items()
+                      if todo != "1.3.3"}
+            left_out = sum(len(pairs) for todo, pairs in similarity_class.handout_only(report, planted, layout).items()
+                           if todo != "1.3.3")
             independent = sum(pair.flagged and pair.students not in planted
                               for found in report.pairs.values() for pair in found)
             all_pairs = args.students * (args.students - 1) // 2 * len(recall)
             worst = min(recall, key=recall.get)
             print(f"seed {seed}: {wall:.1f} s wall, {cpu:.1f} s CPU, {peak:.0f} MiB peak; recall in the top 10: "
-                  f"{sum(recall.values()) / len(recall):.3f} over the TODOs, worst {recall[worst]:.3f} ({worst}); "
+                  f"{sum(recall.values()) / len(recall):.3f} over the TODOs, worst {recall[worst]:.3f} ({worst}), "
+                  f"{left_out} of {len(planted) * len(recall)} planted pair-TODOs only the handout's; "
                   f"independent pair-TODOs flagged {independent} of {all_pairs} ({independent / all_pairs:.3%}); "
                   f"load {os.getloadavg()[0]:.1f}", flush=True)
 

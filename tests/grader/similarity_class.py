@@ -10,6 +10,10 @@ another student's whole ``hwlib/`` and disguises every block one way (``COPY_KIN
 variables, reordered lines (two adjacent statements that do not depend on each other swapped),
 added comments, or one changed constant. 1.3.3 is one constant (the learning rate, each student's
 own pick from the range that converges), copied as it is.
+
+Where one of a planted pair's blocks is nothing but the handout's equations (``handout_only``), the
+two share nothing of their own there: that TODO cannot show the copy, and ``recall`` does not count
+it (docs/instructor.md, Similarity, says why).
 """
 
 from __future__ import annotations
@@ -19,7 +23,10 @@ import random
 import re
 from pathlib import Path
 
+from copydetect.utils import filter_code
+
 from hwtools.grade import blocks, kits
+from hwtools.grade.instructor import similarity
 
 NATURAL = Path(__file__).resolve().parent / "natural_solutions"
 COPY_KINDS = ("renamed", "reordered", "commented", "constant")
@@ -244,10 +251,35 @@ def natural_class(layout, folder):
     return sum(count * (count - 1) // 2 for count in written.values())
 
 
-def recall(report, planted, top=10):
-    """{todo: share of the planted pairs among that TODO's ``top`` pairs}."""
+def _statements(text):
+    """A block's statements as copydetect reads them (every name "V"; no comments, no layout), a
+    number spelt one way (1.0 as 1)."""
+    tree = ast.parse(text)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and type(node.value) is float and node.value.is_integer():
+            node.value = int(node.value)
+    return {filter_code(ast.unparse(statement), "block.py", "python")[0] for statement in tree.body}
+
+
+def handout_only(report, planted, layout):
+    """{todo: [planted pair]} where one of the two blocks is nothing but the TODO's stub and the
+    handout's equations (``similarity.boilerplate_texts``), up to names, comments, layout and how a
+    number is spelt: all the two can share there is the handout's."""
     found = {}
+    for todo, block in similarity.todo_blocks(layout).items():
+        boilerplate = set().union(*map(_statements, similarity.boilerplate_texts(block)))
+        found[todo] = [pair for pair in planted if any(
+            _statements(report.texts[student].get(todo, "")) <= boilerplate for student in pair)]
+    return found
+
+
+def recall(report, planted, layout, top=10):
+    """{todo: share of the planted pairs among that TODO's ``top`` pairs}, of those it can show (not
+    ``handout_only``); a TODO where it can show none is left out."""
+    found, left_out = {}, handout_only(report, planted, layout)
     for todo, pairs in report.pairs.items():
         best = {pair.students for pair in pairs[:top]}
-        found[todo] = sum(pair in best for pair in planted) / len(planted)
+        counted = [pair for pair in planted if pair not in left_out[todo]]
+        if counted:
+            found[todo] = sum(pair in best for pair in counted) / len(counted)
     return found

@@ -22,7 +22,7 @@ from hwtools.grade.instructor import similarity
 
 KIT = Path(__file__).resolve().parents[2]
 pytestmark = [pytest.mark.timeout(300)]
-STUDENTS, COPIES, SEED = 48, 4, 5  # one copier of each kind
+STUDENTS, COPIES, SEED = 48, 4, 8  # one copier of each kind; 2.2.1: a short block, a constant changed; 2.3.1: the handout
 
 
 @pytest.fixture(scope="module")
@@ -37,14 +37,19 @@ def planted_class(layout, tmp_path_factory):
     return folder, planted, similarity.similarity(folder, layout)
 
 
-def test_the_planted_copies_are_the_top_pairs_of_every_todo_and_flagged(planted_class):
+def test_the_planted_copies_are_the_top_pairs_of_every_todo_and_flagged(layout, planted_class):
+    """Every TODO's 10 best pairs hold at least 90% of the planted copies it can show (those where neither
+    block is only the handout's equations: ``similarity_class.handout_only``); a pair the report lists as
+    no evidence has such a block."""
     folder, planted, report = planted_class
     assert sorted(planted.values()) == sorted(similarity_class.COPY_KINDS)
-    recall = similarity_class.recall(report, planted)
+    recall = similarity_class.recall(report, planted, layout)
     coded = [todo for todo in recall if todo not in report.silent]
     assert len(coded) >= 8 and set(report.silent) <= {"1.3.3"}, report.silent  # 1.3.3 is one constant
-    assert sum(recall[todo] for todo in coded) / len(coded) >= 0.9, recall
-    assert min(recall[todo] for todo in coded) >= 0.75, recall
+    assert min(recall[todo] for todo in coded) >= 0.9, recall
+    only = similarity_class.handout_only(report, {pair.students: "" for found in report.handout_only.values()
+                                                  for pair in found}, layout)
+    assert all(pair.students in only[todo] for todo, found in report.handout_only.items() for pair in found)
     flagged = {pair.students for found in report.pairs.values() for pair in found if pair.flagged}
     assert set(planted) <= flagged, "every copier is flagged in some TODO"
     independent = [pair for found in report.pairs.values() for pair in found if pair.flagged and pair.students not in planted]
@@ -69,11 +74,17 @@ COPIED = ("for i in range(len(x)):\n    step = np.zeros_like(x)\n    step[i] = h
           "    s = ' " + SCRIPT + " '\n    gradient[i] = (f(x + step) - f(x - step)) / (2.0 * h[i])\n")
 
 
+HANDOUT = {"2.3.1": "mine = (y == c).astype(int)\nself.classifiers[c].gradient_ascent_step(X, mine, learning_rate)"}
+OWN = "self.classifiers[c].gradient_ascent_step(X, np.where(y == c, 1, 0), learning_rate)"
+
+
 def small_class(layout, folder):
-    """Two students who hand in one block (with markup in it) and two who write their own; a damaged zip."""
-    for student, body in (("<b>bo", COPIED), ("=cmd|' -C calc'!A0", COPIED), ("ana", "gradient[:] = 0"),
-                          ("dee", "gradient = np.array([1.0 for _ in x])")):
-        kits.write_submission(layout, folder / student, {"1.2.1": body})
+    """Two students who hand in one block (with markup in it) and 2.3.1 as the handout writes it, and two
+    who write their own; a damaged zip."""
+    for student, bodies in (("<b>bo", {"1.2.1": COPIED, **HANDOUT}), ("=cmd|' -C calc'!A0", {"1.2.1": COPIED, **HANDOUT}),
+                            ("ana", {"1.2.1": "gradient[:] = 0", "2.3.1": OWN}),
+                            ("dee", {"1.2.1": "gradient = np.array([1.0 for _ in x])"})):
+        kits.write_submission(layout, folder / student, bodies)
     (folder / "broken.zip").write_bytes(b"PK\x03\x04" + bytes(50))
     return folder
 
@@ -88,6 +99,10 @@ def test_the_csv_ranks_each_todo_and_the_page_escapes_what_students_wrote(layout
     assert tuple(rows[0]) == similarity.CSV_HEADER
     ranked = [row for row in rows[1:] if row[0] == "1.2.1"]
     assert [(row[1], row[2], row[3], row[9]) for row in ranked] == [("1", "<b>bo", "'=cmd|' -C calc'!A0", "yes")]
+    # 2.3.1, the handout's equations in both: listed once, as no evidence, not ranked
+    assert [(row[1], row[2], row[3], row[9], row[10]) for row in rows if row[0] == "2.3.1"] == [
+        ("", "<b>bo", "'=cmd|' -C calc'!A0", similarity.NOT_EVIDENCE, "1.2.1")]
+    assert text.count("&lt;b&gt;bo &amp; =cmd") == 3 and "nothing but the stub and the handout's equations" in text
 
 
 def test_the_command_compares_a_class_offline_without_grading_it(layout, tmp_path):

@@ -15,8 +15,12 @@ edition's stub, the handout's equations as code: ``HANDOUT_CODE``) never counts,
 class writes it, not a copy. For a pair of students and a TODO, ``own`` is how much of the two
 blocks is shared beyond the boilerplate, and ``across`` how much of what each wrote rarely, over all
 TODOs, the two share: one student who copies another's homework shares the other's rare code in
-every TODO, two who happen to write one TODO alike do not. The ``score``, (own + 2 across) / 3,
-ranks the pairs of each TODO and flags those at ``FLAG`` or more.
+every TODO, two who happen to write one TODO alike do not. The rare code is read with each block's
+statements in one order (``statement_order``), so that reordered lines hide nothing of it. The
+``score``, (own + 2 across) / 3, ranks the pairs of each TODO and flags those at ``FLAG`` or more.
+Two students flagged elsewhere, one of whose blocks of a TODO is nothing but the boilerplate (the
+handout's formula, say), are listed there as no evidence (``Report.handout_only``), not ranked: an
+honest pair would look the same.
 
 ``OUT_DIR/similarity.csv`` lists each TODO's best ``TOP`` pairs (with the other TODOs where the
 same two are flagged); ``OUT_DIR/similarity.html`` shows them, with the two blocks side by side and
@@ -25,17 +29,21 @@ the shared code marked, every student text escaped, nothing loaded from anywhere
 
 from __future__ import annotations
 
+import ast
+import builtins
 import copy
 import html
 import io
 import itertools
+import keyword
 import sys
+import tokenize
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from copydetect.detector import CodeFingerprint, compare_files
-from copydetect.utils import get_token_coverage
+from copydetect.utils import filter_code, get_token_coverage
 
 from hwtools.grade import blocks
 from hwtools.grade.grader import KIT_ROOT, has_solutions
@@ -46,8 +54,10 @@ from hwtools.grade.submissions import Unusable, kit_file_names, open_submission
 from hwtools.todos import TODO_BY_ID
 
 # Tuned on benchmarks/bench_similarity.py's classes (RESULTS.md): k = 16 and 8 missed more copies, a
-# winnowing window of 3 and a common limit of 10% flagged more independent pairs.
+# winnowing window of 3 and a common limit of 10% flagged more independent pairs; k below 12 for the TODOs
+# of short blocks only (``noise``) found the copies with one constant changed that 12 missed.
 NOISE = 12  # k: a fingerprint is 12 characters of the tokenized block ("V=V.V(V)+..."); shorter matches are noise
+SHORTEST = 8  # the least k, for a TODO whose median block is 32 such characters or fewer
 WINDOW = 1  # every k-gram is a fingerprint (the blocks are short: winnowing would only lose matches)
 FLAG = 0.6  # the score from which a pair is flagged
 TOP = 25  # pairs per TODO in the CSV and the page
@@ -81,10 +91,41 @@ def block_text(body):
     return "\n\n".join("\n".join(blocks.reindent(lines, "")) for lines in body) + "\n"
 
 
-def boilerplate_text(block):
-    """A block's boilerplate: the stub the student starts from and the handout's equations."""
+def boilerplate_texts(block):
+    """A block's boilerplate: the stub the student starts from, and the handout's equations."""
     stub = list(block.stub) + [f'raise TodoNotDone("{block.todo}")']
-    return "\n".join(blocks.reindent(stub, "")) + "\n" + HANDOUT_CODE.get(block.todo, "") + "\n"
+    return "\n".join(blocks.reindent(stub, "")) + "\n", HANDOUT_CODE.get(block.todo, "") + "\n"
+
+
+def todo_blocks(layout):
+    """{todo: its first block in the kit ``layout``}, in the files' order."""
+    found = {}
+    for file_blocks in layout.blocks_by_file.values():
+        for block in file_blocks:
+            found.setdefault(block.todo, block)
+    return found
+
+
+KEPT = {*vars(builtins), "self"}  # names copydetect's lexer keeps (pygments: Name.Builtin, Name.Builtin.Pseudo)
+
+
+def _shape(line):
+    """A statement's tokens as copydetect reads them: every name "V", but keywords and ``KEPT``."""
+    def read(token):
+        kept = token.type != tokenize.NAME or token.string in KEPT or keyword.iskeyword(token.string)
+        return token.string if kept else "V"
+    return "".join(map(read, tokenize.generate_tokens(io.StringIO(line).readline)))
+
+
+def statement_order(text):
+    """``text``'s statements in one order, that of their ``_shape``, without comments: blocks that
+    differ only in the order of their lines (or names, or comments) read alike. Code that does not
+    parse is left as it is."""
+    try:
+        lines = [ast.unparse(statement) for statement in ast.parse(text).body]
+    except (SyntaxError, ValueError, RecursionError):
+        return text
+    return "\n".join(sorted(lines, key=_shape)) + "\n"
 
 
 def read_class(folder, layout, skip=()):
@@ -107,8 +148,8 @@ def read_class(folder, layout, skip=()):
     return texts, unread
 
 
-def _fingerprint(text, todo):
-    return CodeFingerprint(f"{todo}.py", NOISE, WINDOW, language="python", fp=io.StringIO(text))
+def _fingerprint(text, todo, k=NOISE):
+    return CodeFingerprint(f"{todo}.py", k, WINDOW, language="python", fp=io.StringIO(text))
 
 
 def _without(found, ignored):
@@ -120,21 +161,34 @@ def _without(found, ignored):
     return kept
 
 
+def noise(texts):
+    """k for one TODO's blocks ``texts``: a quarter of the median block's length as copydetect reads it,
+    from ``SHORTEST`` to ``NOISE``, so that the pieces of a short block cut by a changed constant or by
+    moved lines still hold k-grams."""
+    lengths = sorted(len(filter_code(text, "block.py", "python")[0]) for text in texts)
+    return max(SHORTEST, min(NOISE, lengths[len(lengths) // 2] // 4)) if lengths else NOISE
+
+
 class Fingerprints:
     """One TODO's blocks fingerprinted two ways: ``plain`` without the boilerplate's fingerprints
-    (the stub, the handout's equations), ``rare`` without those in more than ``limit`` students'
-    blocks too (how the class writes it): only the rare ones are evidence."""
+    (the stub, the handout's equations: ``boilerplate``, texts), ``rare`` from the blocks with their
+    statements in one order (``statement_order``), without the boilerplate's and those in more than
+    ``limit`` students' blocks (how the class writes it): only the rare ones are evidence."""
 
     def __init__(self, todo, texts, boilerplate, limit):
         self.todo = todo
-        boilerplate = _fingerprint(boilerplate, todo).hashes
-        self.plain = {student: _without(_fingerprint(text, todo), boilerplate) for student, text in texts.items()}
+        k = noise(texts.values())
+        boilerplate = set().union(*(_fingerprint(form, todo, k).hashes for text in boilerplate
+                                    for form in (text, statement_order(text))))
+        self.plain = {student: _without(_fingerprint(text, todo, k), boilerplate) for student, text in texts.items()}
+        ordered = {student: _without(_fingerprint(statement_order(text), todo, k), boilerplate)
+                   for student, text in texts.items()}
         counts = {}
-        for found in self.plain.values():
+        for found in ordered.values():
             for value in found.hashes:
                 counts[value] = counts.get(value, 0) + 1
         common = {value for value, count in counts.items() if count > limit}
-        self.rare = {student: _without(found, common) for student, found in self.plain.items()}
+        self.rare = {student: _without(found, common) for student, found in ordered.items()}
 
 
 def _compare(first, second):
@@ -184,12 +238,15 @@ def _sharing(prints):
 @dataclass
 class Report:
     """What ``similarity`` found: ``pairs`` {todo: [Pair], best first}, ``texts`` {student: {todo:
-    text}}, ``unread`` {student: why}, ``silent`` {todo: why nothing in it is evidence}."""
+    text}}, ``unread`` {student: why}, ``silent`` {todo: why nothing in it is evidence},
+    ``handout_only`` {todo: [Pair]}: pairs flagged in other TODOs where one of the two blocks of this
+    one is nothing but the stub and the handout's equations (not evidence, not ranked)."""
 
     pairs: dict
     texts: dict
     unread: dict
     silent: dict
+    handout_only: dict
 
 
 def similarity(folder, layout, skip=()):
@@ -201,11 +258,9 @@ def compare_class(texts, unread, layout):
     """The ``Report`` of ``texts`` ({student: {todo: text}}; ``unread``: {student: why not read})."""
     limit = common_limit(len(texts))
     todos = {}
-    for file_blocks in layout.blocks_by_file.values():
-        for block in file_blocks:
-            if block.todo not in todos:
-                found = {student: each[block.todo] for student, each in texts.items() if block.todo in each}
-                todos[block.todo] = Fingerprints(block.todo, found, boilerplate_text(block), limit)
+    for todo, block in todo_blocks(layout).items():
+        found = {student: each[todo] for student, each in texts.items() if todo in each}
+        todos[todo] = Fingerprints(todo, found, boilerplate_texts(block), limit)
     evidence, rare_in = {}, {}  # pair -> summed rare shares; student -> TODOs where they wrote something rare
     for todo, prints in todos.items():
         for student, found in prints.rare.items():
@@ -214,14 +269,14 @@ def compare_class(texts, unread, layout):
         for pair in _sharing(prints.rare):
             evidence[pair] = evidence.get(pair, 0.0) + _compare(*(prints.rare[student] for student in pair))[0]
     across = {pair: total / len(rare_in[pair[0]] & rare_in[pair[1]]) for pair, total in evidence.items()}
-    pairs, silent = {}, {}
+    pairs, silent, unshared = {}, {}, {}
     for todo, prints in todos.items():
         found = []
         for pair in sorted(across):
             if all(student in prints.plain for student in pair):
                 own, shares, slices = _compare(*(prints.plain[student] for student in pair))
-                if own:
-                    found.append(Pair(todo, pair, own, shares, slices, across[pair]))
+                (found if own else unshared.setdefault(todo, [])).append(
+                    Pair(todo, pair, own, shares, slices, across[pair]))
         found.sort(key=lambda pair: (-pair.score, -pair.own, pair.students))
         for rank, pair in enumerate(found, 1):
             pair.rank = rank
@@ -236,23 +291,28 @@ def compare_class(texts, unread, layout):
         for pair in found:
             if pair.flagged:
                 flagged.setdefault(pair.students, []).append(todo)
-    for todo, found in pairs.items():
+    handout_only = {todo: [pair for pair in unshared.get(todo, []) if pair.students in flagged and not all(
+        todos[todo].plain[student].token_coverage for student in pair.students)] for todo in pairs if todo not in silent}
+    for todo, found in (*pairs.items(), *handout_only.items()):
         for pair in found:
             pair.also = [other for other in flagged.get(pair.students, []) if other != todo]
-    return Report(pairs, texts, unread, silent)
+    return Report(pairs, texts, unread, silent, {todo: found for todo, found in handout_only.items() if found})
 
 
 CSV_HEADER = ("todo", "rank", "student_a", "student_b", "score", "this_todo", "all_todos", "share_of_a", "share_of_b",
               "flagged", "also_flagged_in")
+NOT_EVIDENCE = "not evidence: a block that is only the handout's equations"
 
 
 def csv_report(report):
-    """The ranked table: each TODO's ``TOP`` pairs, best first."""
+    """The ranked table: each TODO's ``TOP`` pairs, best first, then its ``handout_only`` pairs, unranked."""
     rows = [CSV_HEADER]
     for todo, found in report.pairs.items():
         rows += [(todo, pair.rank, *pair.students, round(pair.score, 3), round(pair.own, 3), round(pair.across, 3),
                   *(round(share, 3) for share in pair.shares),
                   "yes" if pair.flagged else "", " ".join(pair.also)) for pair in found[:TOP]]
+        rows += [(todo, "", *pair.students, "", 0, round(pair.across, 3), "", "", NOT_EVIDENCE, " ".join(pair.also))
+                 for pair in report.handout_only.get(todo, [])]
     return csv_text(rows)
 
 
@@ -302,6 +362,11 @@ def html_report(report, title="Similarity per TODO"):
             continue
         flagged = sum(pair.flagged for pair in found)
         parts.append(f"<p>{flagged} pair(s) flagged of the {len(found)} that share code here and rare code somewhere.</p>")
+        if todo in report.handout_only:
+            parts.append("<p>Flagged in other TODOs, but here one of the two wrote nothing but the stub and the "
+                         "handout's equations (not evidence: an honest student writes the same): " + "; ".join(
+                             f"{_shown(pair.students[0])} &amp; {_shown(pair.students[1])} (flagged in "
+                             f"{html.escape(' '.join(pair.also))})" for pair in report.handout_only[todo]) + ".</p>")
         if not found:
             continue
         parts.append("<table><tr><th>rank</th><th>students</th><th>score</th><th>this TODO</th><th>all TODOs</th>"
