@@ -291,12 +291,16 @@ def compare_class(texts, unread, layout):
         for pair in found:
             if pair.flagged:
                 flagged.setdefault(pair.students, []).append(todo)
-    handout_only = {todo: [pair for pair in unshared.get(todo, []) if pair.students in flagged and not all(
-        todos[todo].plain[student].token_coverage for student in pair.students)] for todo in pairs if todo not in silent}
+    handout_only = {}  # pairs flagged elsewhere, one of whose blocks here has nothing beyond the boilerplate
+    for todo, found in unshared.items():
+        found = [pair for pair in found if pair.students in flagged
+                 and not all(todos[todo].plain[student].token_coverage for student in pair.students)]
+        if found and todo not in silent:
+            handout_only[todo] = found
     for todo, found in (*pairs.items(), *handout_only.items()):
         for pair in found:
             pair.also = [other for other in flagged.get(pair.students, []) if other != todo]
-    return Report(pairs, texts, unread, silent, {todo: found for todo, found in handout_only.items() if found})
+    return Report(pairs, texts, unread, silent, handout_only)
 
 
 CSV_HEADER = ("todo", "rank", "student_a", "student_b", "score", "this_todo", "all_todos", "share_of_a", "share_of_b",
