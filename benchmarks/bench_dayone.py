@@ -1,7 +1,7 @@
 """Day one's costs: Run All of each notebook, and the check cell of each TODO.
 
     .venv/bin/python benchmarks/bench_dayone.py [--rounds N] [--skip-run-all] [--skip-p2] [--skip-checks] [--skip-pytest]
-        [--own-turn] [--done] [--reuse]
+        [--done] [--reuse]
 
 1. **Run All of problem 1** (the instructor's edition, a fresh kernel, as ``nbconvert --execute``
    does): wall clock and CPU seconds (the kernel and everything it ran: the check cells' graders
@@ -15,9 +15,7 @@
 2. **One check per TODO** (``hwtools.check_cell.grade_todo``, what ``check("1.2.1")`` runs): wall and
    CPU seconds in the instructor's edition (grading the solutions, hidden inputs included) and in
    a student edition whose TODOs hold the solutions (the answer key, visible checks only: what a
-   student who is done waits for). The target is 3 s per TODO on 2 cores. With ``--own-turn``, each also
-   with a HOME of its own beside it: a check then never waits for the machine-wide turn of untrusted
-   runs that other graders hold (``hwtools/grade/sandbox.py``), so the pair tells the wait from the path.
+   student who is done waits for). The target is 3 s per TODO on 2 cores.
 3. **The untouched student edition's ``pytest``** (``tests/instructor/day_one.py``'s day-one edition, every
    test as the student runs them): seconds and lines printed (it took 13.5 min and printed 3,400
    lines before its failures named their TODO and its browser tests waited for errors they could
@@ -190,10 +188,8 @@ def bench_reuse(rounds):
     print(f"  compared outputs the same both ways: {outputs['sweep read back'] == outputs['sweep trained']}")
 
 
-def bench_checks(rounds, own_turn=False):
-    """One check per TODO in both editions. ``own_turn``: also, in turns with each, the same check with a HOME of
-    its own, so that it never waits for the machine-wide turn of untrusted runs (``~/.cache/hwgrade``) that
-    other graders on the machine hold: the check cell's own path."""
+def bench_checks(rounds):
+    """One check per TODO in both editions."""
     from hwtools.check_cell import grade_todo
     from hwtools.grade import checks
     from instructor.release import build_student_edition
@@ -202,35 +198,23 @@ def bench_checks(rounds, own_turn=False):
     with tempfile.TemporaryDirectory(prefix="bench-dayone-") as scratch:
         student = Path(scratch) / "student"
         build_student_edition(KIT, student, keep=frozenset(TODO_BY_ID))
-        homes = [None] + ([Path(scratch) / "home"] if own_turn else [])
-        print(f"\none check per TODO (median of {rounds}): wall / CPU seconds"
-              + ("; each second column with a HOME of its own (no wait for other graders' turn)" if own_turn else ""))
-        print(f"  {'TODO':6s} " + " ".join(f"{kit + (' own turn' if home else ''):>24s}" for kit in ("instructor", "student (done)")
-                                            for home in homes))
+        print(f"\none check per TODO (median of {rounds}): wall / CPU seconds")
+        print(f"  {'TODO':6s} " + " ".join(f"{kit:>24s}" for kit in ("instructor", "student (done)")))
         worst = (0.0, None)
         for todo in checks.GRADED_TODOS:
             row = []
             for kit in (KIT, student):
-                for home in homes:
-                    walls, cpus = [], []
-                    for _ in range(rounds):
-                        previous = os.environ.get("HOME")
-                        if home is not None:
-                            home.mkdir(exist_ok=True)
-                            os.environ["HOME"] = str(home)
-                        try:
-                            cpu, started = children_cpu(), time.perf_counter()
-                            grade_todo(todo, kit=kit)
-                            walls.append(time.perf_counter() - started)
-                            cpus.append(children_cpu() - cpu)
-                        finally:
-                            if previous is not None:
-                                os.environ["HOME"] = previous
-                    row.append((statistics.median(walls), statistics.median(cpus)))
+                walls, cpus = [], []
+                for _ in range(rounds):
+                    cpu, started = children_cpu(), time.perf_counter()
+                    grade_todo(todo, kit=kit)
+                    walls.append(time.perf_counter() - started)
+                    cpus.append(children_cpu() - cpu)
+                row.append((statistics.median(walls), statistics.median(cpus)))
             worst = max(worst, (row[-1][0], todo))
             print(f"  {todo:6s} " + " ".join(f"{wall:14.2f} / {cpu:5.2f} s" for wall, cpu in row)
                   + f"  (load {os.getloadavg()[0]:.1f})", flush=True)
-        print(f"  the slowest check (student edition{', own turn' if own_turn else ''}): {worst[1]}, {worst[0]:.2f} s")
+        print(f"  the slowest check (student edition): {worst[1]}, {worst[0]:.2f} s")
 
 
 def bench_untouched_pytest():
@@ -283,7 +267,6 @@ def main():
     parser.add_argument("--skip-checks", action="store_true")
     parser.add_argument("--skip-pytest", action="store_true")
     parser.add_argument("--done", action="store_true", help="only the done student's path: pytest and hand-in")
-    parser.add_argument("--own-turn", action="store_true", help="each check also with a HOME of its own (no machine-wide turn)")
     parser.add_argument("--reuse", action="store_true", help="only the loop after 1.3: Run All of p1, sweep trained vs read back")
     args = parser.parse_args()
     os.environ.setdefault("MPLBACKEND", "Agg")
@@ -297,7 +280,7 @@ def main():
         print(f"\nload average {os.getloadavg()[0]:.1f} at the end")
         return
     if not args.skip_checks:
-        bench_checks(args.rounds, args.own_turn)
+        bench_checks(args.rounds)
     if not args.skip_run_all:
         bench_run_all(args.rounds)
     if not args.skip_p2:

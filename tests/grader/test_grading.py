@@ -507,7 +507,7 @@ def test_cheat_earns_nothing_it_should_not(request, layout, tmp_path, path, answ
         assert lost == cheat["loses"], render(result)
     for entry in result["todos"]:
         if entry["first_failure"] and entry["first_failure"]["hidden"]:
-            assert set(entry["first_failure"]) == {"check", "hidden", "input"}
+            assert set(entry["first_failure"]) == {"check", "short", "hidden", "input"}  # the check in full and in one line: its public words
         if entry["id"] in cheat["hardcode"]:  # right on every visible input, wrong on the hidden ones
             assert all(check["failed_on"] == "hidden" for check in entry["checks"]), entry
     leak_search.assert_nothing_leaks(result, secrets)

@@ -638,7 +638,7 @@ def test_a_submission_s_runs_share_a_wall_clock_budget(isolated, tmp_path, monke
     (BUDGET_FACTOR x the time limit); once it is spent the remaining TODOs are not run and fail as
     timed out, so a submission costs at most the budget, not ten runs x the limit. Judged on each
     run's own clock (what was left at its begin, its deadline), never on the test's wall clock:
-    waiting for the machine-wide lock or a loaded machine is not the submission's time."""
+    waiting for the grading's turn or a loaded machine is not the submission's time."""
     from hwtools.grade import Grader, blocks, checks
     from hwtools.grade.grader import BUDGET_FACTOR
 
