@@ -745,7 +745,9 @@ def test_latex_typesets_the_students_derivation(latex):
 
 def test_every_cell_prints_what_it_prints_on_linux(report_run, tmp_path):
     """Each cell of both notebooks that nbval compares, the check cells and the learning-rate sweep among them, run by
-    the report in a kernel of the Windows profile's Python, prints what it prints on Linux."""
+    the report in a kernel of the Windows profile's Python, prints what it prints on Linux. Made to fail once: with the
+    grader's child in the code page (no UTF-8 mode, no ``printable_output``) the report stopped at check("1.1.1"):
+    "The check could not run: ... UnicodeEncodeError: 'charmap' codec can't encode character '\\u0141'"."""
     out_dir, _, edition, _ = report_run
     assert_printed_as_on_linux(out_dir, linux_check_texts(edition, tmp_path))
 
