@@ -16,7 +16,6 @@ processes share them.
 
 from __future__ import annotations
 
-import re
 import subprocess
 
 import pytest
