@@ -18,6 +18,9 @@ pytest_plugins = ("hwtools.pytest_todo", "hwtools.pytest_overrun")
 # machine-wide. They no longer do (hwtools/grade/sandbox.py: only a grading's own runs take turns); the
 # split stays until another is measured shorter.
 RUN_STUDENT_CODE = "tests/grader/"
+# A file whose tests run once per system (a module-scoped run each): each system's tests are a unit of their own,
+# so that the two processes share them.
+BY_SYSTEM = "tests/notebooks/test_other_systems.py"
 
 
 def pytest_configure(config):
@@ -46,6 +49,8 @@ def pytest_xdist_make_scheduler(config, log):
 
     class StudentCodeFilesTogether(LoadFileScheduling):
         def _split_scope(self, nodeid):
+            if nodeid.startswith(BY_SYSTEM):
+                return f"{BY_SYSTEM}[{nodeid.rpartition('[')[2]}"
             return RUN_STUDENT_CODE if nodeid.startswith(RUN_STUDENT_CODE) else super()._split_scope(nodeid)
 
     return StudentCodeFilesTogether(config, log)

@@ -53,6 +53,23 @@ def kit_env(kit, python=None):
 
 
 FOREIGN_PROGRAMS = "foreign-programs"  # beside a foreign student Python's bin/: the programs its PATH holds
+EDITION_TESTS_SECONDS = 1500  # the edition's whole pytest: about 2.5 min at load 3-6 on 2 cores
+
+
+def assert_edition_tests_pass(python, kit, encoding):
+    """The edition's own test command, ``python -m pytest`` in ``kit`` with the student's ``python``, passes within
+    its time limits, its notebooks among its tests (its output read in ``encoding``, the system's pipes')."""
+    def pytest(*options, timeout):
+        return subprocess.run([str(python), "-m", "pytest", "-q", "-p", "no:cacheprovider", *options], cwd=kit,
+                              env=kit_env(kit, python), capture_output=True, encoding=encoding, errors="replace",
+                              timeout=timeout)
+
+    assert re.search(r"^timeout = \d+$", (Path(kit) / "pyproject.toml").read_text(), re.M)  # a limit for every test
+    done = pytest(timeout=EDITION_TESTS_SECONDS)
+    summary = done.stdout.strip().splitlines()[-1] if done.stdout.strip() else ""
+    assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
+    assert re.fullmatch(r"=* ?\d+ passed(, \d+ skipped)? in .*", summary.strip("= ")), summary
+    assert "notebooks/p2_food_cutting_logistic_regression.ipynb" in pytest("--collect-only", timeout=300).stdout
 
 
 def versions_tested():
@@ -112,7 +129,7 @@ def student_python(folder, foreign=False, system=None, home=None, base=None):
     is not read), so ``instructor`` cannot be imported. Run it with ``kit_env(edition, python)``: the
     edition is then on its path, as the edition's own ``pip install -e .`` puts it. ``system``
     ("macos", "windows", "hub"; ``foreign``: "windows"): every process of it behaves as on that system
-    (``foreign_os.py``; ``home``: the hub's read-only home). ``base``: another Python to make it of (then
+    (``foreign_os.py``; ``home``: the user's home there, a hub's read-only). ``base``: another Python to make it of (then
     with packages of its own version, ``packages_of``)."""
     base = Path(base or sys.executable)
     subprocess.run([str(base), "-m", "venv", "--without-pip", str(folder)], check=True, timeout=300)
@@ -208,30 +225,6 @@ def run_all(notebook, kit):
     done = subprocess.run([sys.executable, "-c", RUN_ALL, str(notebook)], capture_output=True, text=True,
                           env=kit_env(kit), cwd=kit, timeout=1800)
     assert done.returncode == 0, done.stderr[-3000:]
-    return json.loads(done.stdout)
-
-
-RUN_CELLS = r'''
-import json, sys
-import nbformat
-from nbclient import NotebookClient
-
-kit, sources = sys.argv[1], json.loads(sys.argv[2])
-notebook = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(source) for source in sources])
-client = NotebookClient(notebook, timeout=900, allow_errors=True, kernel_name="python3", resources={"metadata": {"path": kit}})
-with client.setup_kernel():
-    for index, cell in enumerate(notebook.cells):
-        client.execute_cell(cell, index)
-json.dump([cell.outputs for cell in notebook.cells], sys.stdout)
-'''
-
-
-def run_cells(python, kit, sources):
-    """The outputs of the code cells ``sources``, run in turn in one kernel of ``python`` (a student's, the
-    kernel its own: Jupyter starts the kernel with the Python that asks) on the kit at ``kit``."""
-    done = subprocess.run([str(python), "-c", RUN_CELLS, str(kit), json.dumps(sources)], capture_output=True,
-                          env=kit_env(kit, python), cwd=kit, timeout=1800)
-    assert done.returncode == 0, done.stderr[-3000:].decode("utf-8", "replace")
     return json.loads(done.stdout)
 
 

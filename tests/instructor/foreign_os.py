@@ -17,8 +17,10 @@ module is in ``hwlib``/``hwtools``, or whose file lies under such a folder, the 
 
 ``"macos"``: no ``/proc``; no pidfd, ``sched_getaffinity``, ``epoll``, ``pipe2``; ``setrlimit`` of a
 finite ``RLIMIT_AS`` or ``RLIMIT_DATA`` raises ``ValueError: current limit exceeds maximum limit``
-(cpython#78783, #84698), for every caller; ``multiprocessing`` starts with "spawn"; no bubblewrap,
-``prlimit`` or Chromium on ``PATH``.
+(cpython#78783, #84698), for every caller; ``multiprocessing`` starts with "spawn"; ``sys.platform`` is
+"darwin" to the kit's code (its caches go to ``~/Library/Caches``, it looks for browsers in
+``/Applications`` and ``~/Applications``, where this box has none: a Mac with Safari only); no
+bubblewrap, ``prlimit`` or Chromium on ``PATH``.
 
 ``"windows"``: the Unix-only modules (``UNIX_MODULES``) refused at import and the Unix-only names
 (``UNIX_NAMES``: ``SIGKILL`` and ``SIGALRM`` among them, so no CPU-time limit and pytest-timeout's thread
@@ -34,7 +36,11 @@ ends a process tree (``/T``), by parent ids as Windows does; no bubblewrap, ``pr
 
 ``"hub"`` (a JupyterHub's single-user server): the home folder ``home`` is read-only for the kit
 (``OSError`` EROFS on every write, folder or lock file made there), and user namespaces are off (the
-``bwrap`` on ``PATH`` fails as it does there). Linux otherwise.
+``bwrap`` on ``PATH`` fails as it does there). Linux otherwise: ``prlimit`` and Debian's Chromium on
+``PATH`` (a course's hub image with the browser the report prints with).
+
+With a ``home`` (macOS, a hub), a process has that home (``HOME``) and none of this test run's cache variables
+(``HWLIB_CACHE_DIR``, ``XDG_CACHE_HOME``): the kit keeps its caches where that system does, in that home.
 
 ``install()`` (no argument) is ``install("windows")``, the profile of issue 32.7.
 """
@@ -85,6 +91,7 @@ MAC_REFUSED_LIMITS = ("RLIMIT_AS", "RLIMIT_DATA")
 CODE_PAGE = "cp1252"
 WINERROR_32 = "[WinError 32] The process cannot access the file because it is being used by another process"
 PROGRAMS_LEFT_OUT = ("bwrap", "prlimit", "chromium", "google-chrome")  # names, and names that start so
+CACHE_VARIABLES = ("HWLIB_CACHE_DIR", "XDG_CACHE_HOME")  # this test run's, not a student's
 _kit_files = {}
 _system = None
 
@@ -379,6 +386,19 @@ def _refused_limits():
     resource.setrlimit = mac_setrlimit
 
 
+def _platform(name):
+    """``sys.platform`` is ``name`` to the kit's code (its own branches for that system run; other code keeps Linux's)."""
+    read, frame = types.ModuleType.__getattribute__, sys._getframe
+
+    class ForeignSys(types.ModuleType):
+        def __getattribute__(self, attribute):
+            if attribute == "platform" and _kit_frame(frame(1)):
+                return name
+            return read(self, attribute)
+
+    sys.__class__ = ForeignSys
+
+
 def _spawn():
     import multiprocessing.context as context  # noqa: PLC0415
 
@@ -389,7 +409,6 @@ def _spawn():
 
 def _read_only(home):
     home = os.path.realpath(home)
-    os.environ["HOME"] = home  # the hub's home, for this process and those it starts
 
     def under(path):
         if path is None or isinstance(path, int):
@@ -436,13 +455,18 @@ def _read_only(home):
 # --- install -----------------------------------------------------------------------------------
 
 def install(system="windows", home=None):
-    """Make this process behave as on ``system`` (once per process); ``home``: the hub's read-only home."""
+    """Make this process behave as on ``system`` (once per process); ``home``: the user's home there (a hub's is
+    read-only)."""
     global _system
     if system not in SYSTEMS:
         raise ValueError(f"system must be one of {', '.join(SYSTEMS)}, got {system!r}")
     if _system is not None:
         return
     _system = system
+    if home is not None:
+        os.environ["HOME"] = os.path.realpath(home)  # for this process and those it starts
+        for variable in CACHE_VARIABLES:
+            os.environ.pop(variable, None)
     if system == "hub":
         _read_only(home or os.path.expanduser("~"))
         return
@@ -456,6 +480,7 @@ def install(system="windows", home=None):
         builtins.open = io.open = opener
         _refused_limits()
         _spawn()
+        _platform("darwin")
         return
     builtins.__import__, importlib.import_module = _guarded_import, _guarded_import_module
     select.select = _sockets_only_select
@@ -499,8 +524,8 @@ exit 1
 
 def stripped_path(folder, system="windows"):
     """A new folder ``folder`` of links to every program of this system's PATH folders but bubblewrap,
-    ``prlimit`` and Chromium (``PROGRAMS_LEFT_OUT``), for ``PATH``, with what ``system`` has instead
-    (Windows: ``taskkill``; a hub: a ``bwrap`` that cannot make namespaces); returns it."""
+    ``prlimit`` and Chromium (``PROGRAMS_LEFT_OUT``; a hub: but bubblewrap), for ``PATH``, with what ``system``
+    has instead (Windows: ``taskkill``; a hub: a ``bwrap`` that cannot make namespaces); returns it."""
     folder = os.path.abspath(folder)
     os.makedirs(folder)
     for directory in ("/usr/local/sbin", "/usr/local/bin", "/usr/sbin", "/usr/bin", "/sbin", "/bin"):
@@ -508,7 +533,7 @@ def stripped_path(folder, system="windows"):
             continue
         for name in sorted(os.listdir(directory)):
             link = os.path.join(folder, name)
-            if not name.startswith(PROGRAMS_LEFT_OUT) and not os.path.lexists(link):
+            if not name.startswith(("bwrap",) if system == "hub" else PROGRAMS_LEFT_OUT) and not os.path.lexists(link):
                 os.symlink(os.path.join(directory, name), link)
     own = {"windows": {"taskkill": TASKKILL.format(python=sys.executable)}, "hub": {"bwrap": NO_USERNS}}.get(system, {})
     for name, text in own.items():

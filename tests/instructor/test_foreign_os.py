@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import subprocess
 from pathlib import Path
 
@@ -107,7 +108,7 @@ def test_the_kit_is_refused_every_unix_only_facility_and_other_code_is_not(probe
 # --- what each system does differently (issue 39): the kit's code and other code in every process ----------------
 
 BEHAVIOUR = r'''
-import json, multiprocessing, os, signal, subprocess, sys, threading, time
+import json, multiprocessing, os, shutil, signal, subprocess, sys, threading, time
 
 def limit(name, value):
     import resource
@@ -146,6 +147,9 @@ def behaviours(folder):
         "remove a held file": attempt(lambda: os.remove(held)),
         "write in home": attempt(lambda: open(os.path.join(os.path.expanduser("~"), "note.txt"), "w").close()),
         "SIGINT in a wait": interrupted_wait(),
+        "sys.platform": sys.platform,
+        "home, and the caches' variables": [os.path.expanduser("~"), os.environ.get("HWLIB_CACHE_DIR"), os.environ.get("XDG_CACHE_HOME")],
+        "browser, bwrap and prlimit on PATH": [name for name in ("chromium", "bwrap", "prlimit") if shutil.which(name)],
     }
     viewer.close()
     return said
@@ -157,7 +161,8 @@ if __name__ == "__main__":
 '''
 HELD = "PermissionError: [Errno 13] [WinError 32] The process cannot access the file because it is being used by another process: "
 EXPECTED = {  # what a system does differently; "same" as on this Linux box
-    "macos": {"kit": {"setrlimit RLIMIT_AS 1 GiB": "ValueError: current limit exceeds maximum limit", "start method": "spawn"},
+    "macos": {"kit": {"setrlimit RLIMIT_AS 1 GiB": "ValueError: current limit exceeds maximum limit", "start method": "spawn",
+                      "sys.platform": "darwin"},
               "other": {"setrlimit RLIMIT_AS 1 GiB": "ValueError: current limit exceeds maximum limit", "start method": "spawn"}},
     "windows": {"kit": {"setrlimit RLIMIT_AS 1 GiB": "ModuleNotFoundError: No module named 'resource'",
                         "setrlimit RLIMIT_CPU 600 s": "ModuleNotFoundError: No module named 'resource'", "a child's piped Ł": "1", "open() encoding": "'cp1252'", "remove a held file": HELD + "'{folder}/held.pdf'",
@@ -165,15 +170,18 @@ EXPECTED = {  # what a system does differently; "same" as on this Linux box
                 "other": {"a child's piped Ł": "1", "SIGINT in a wait": "long"}},
     "hub": {"kit": {"write in home": "OSError: [Errno 30] Read-only file system: '{home}/note.txt'"}, "other": {}},
 }
+ON_PATH = {"macos": [], "windows": [], "hub": [name for name in ("chromium", "bwrap", "prlimit") if shutil.which(name, path="/usr/bin")]}
 
 
 @pytest.mark.parametrize("system", sorted(EXPECTED))
 def test_each_profile_does_what_its_system_does(tmp_path, system):
-    """In every process of the profile's Python: macOS refuses a finite RLIMIT_AS and starts with "spawn" (every
-    caller); Windows pipes a child's text in cp1252, strictly (every caller), opens the kit's files in cp1252,
+    """In every process of the profile's Python, which has its own home and none of this test run's cache
+    variables: macOS refuses a finite RLIMIT_AS and starts with "spawn" (every caller) and is "darwin" to the kit
+    (made to fail once: with ``_platform`` left out, the kit read "linux"); Windows pipes a child's text in cp1252, strictly (every caller), opens the kit's files in cp1252,
     refuses the kit the removal of a file held open, and wakes no wait on SIGINT (every caller: Ctrl+C comes from
-    another thread); a hub's home is read-only for the kit. Everything else is as on this Linux box. Made to fail
-    once: without ``_interrupt_from_a_thread`` the Windows profile's waits were "short"."""
+    another thread); a hub's home is read-only for the kit, and its PATH has Debian's Chromium and prlimit, and a
+    bwrap that fails. Everything else is as on this Linux box. Made to fail once: without
+    ``_interrupt_from_a_thread`` the Windows profile's waits were "short"."""
     home = tmp_path / "home"
     home.mkdir()
     python = student_python(tmp_path / "venv", system=system, home=home)
@@ -191,7 +199,8 @@ def test_each_profile_does_what_its_system_does(tmp_path, system):
     said = json.loads(done.stdout)
     plain = {"setrlimit RLIMIT_AS 1 GiB": "None", "setrlimit RLIMIT_CPU 600 s": "None", "start method": "fork",
              "a child's piped Ł": "0", "a UTF-8 child's piped Ł": repr("Ł\n".encode()), "open() encoding": "'UTF-8'",
-             "remove a held file": "None", "write in home": "None", "SIGINT in a wait": "short"}
+             "remove a held file": "None", "write in home": "None", "SIGINT in a wait": "short", "sys.platform": "linux",
+             "home, and the caches' variables": [str(home), None, None], "browser, bwrap and prlimit on PATH": ON_PATH[system]}
     for side in ("kit", "other"):
         expected = plain | {name: value.format(folder=folders[side], home=home) for name, value in EXPECTED[system][side].items()}
         assert said[side] == expected, side

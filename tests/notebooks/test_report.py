@@ -27,8 +27,10 @@ import pytest
 from hwlib import settings
 from hwlib.cartpole import CartPoleLinearPolicy, run_policy
 from hwlib.plots.training import PRINT_WIDTH
+from day_one import find_python, kit_env, student_python, versions_tested
 from hwtools import report
 from hwtools.report import chromium, words
+from reports import DERIVATION, TOP, assert_printed_as_on_linux, linux_check_texts, output_text, p1_values, p2_values
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 REPORT_TIMEOUT = 900  # seconds; the run takes about a minute on 2 cores
@@ -36,7 +38,6 @@ REPORT_TIMEOUT = 900  # seconds; the run takes about a minute on 2 cores
 # time on a machine, its packages: ``day_one.packages_of``) and the report itself.
 pytestmark = pytest.mark.timeout(REPORT_TIMEOUT + 600)
 STUDENT_NAME = "Ada Lovelace / alovelac"
-TOP = float(settings.MAX_EPISODE_STEPS)  # the best episode reward
 
 
 # --- part 1: the pieces, without running the notebooks ---------------------------------------------
@@ -77,39 +78,16 @@ def test_a_missing_variable_is_named_with_where_it_is_made(tmp_path):
         report.read_exported(path, "p1.ipynb")
 
 
-def _p1_values(**changes):
-    values = {
-        "tried": {"my first guess": [0.1, -0.2, -1.0, -0.3], "pole angle only": [0, 0, -1, 0]},
-        "random_rewards": [9.0, 11.0, TOP, 30.0],
-        "learning_rate": 0.0007,
-        "run": {"rewards": [9.4, 136.55, TOP, TOP], "policy.params": [0.0081, -0.5874, 0.8861, -1.0]},
-        "sweep": {"learning_rates": [1e-4, 1e-3], "converged_fraction": [0.0, 0.95], "seeds": list(range(20)), "deadline": 7},
-    }
-    values.update(changes)
-    return values
-
-
-def _p2_values():
-    return {
-        "data": {"names": ["Apple", "Carrot"], "source": "synthetic stand-in", "path": None, "labels.shape": [10]},
-        "train_accuracies": [0.5, 0.8, 0.995],
-        "test_accuracy": 0.75,
-        "test_predictions": [0, 1, 1, 0],
-        "y_test": [0, 1, 0, 0],
-        "first_above_99": 2,
-    }
-
-
 def test_bad_notebook_values_are_refused_naming_the_variable():
     with pytest.raises(report.ReportError, match=r"`tried\['x'\]` must be 4 values.*TODO 1\.1\.2"):
-        report.problem_one(_p1_values(tried={"x": [1, 2, 3]}))
+        report.problem_one(p1_values(tried={"x": [1, 2, 3]}))
     with pytest.raises(report.ReportError, match=r"`tried` must be a non-empty dict"):
-        report.problem_one(_p1_values(tried=[0, 0, 0, 0]))
+        report.problem_one(p1_values(tried=[0, 0, 0, 0]))
     with pytest.raises(report.ReportError, match=r"`learning_rate` must be a number"):
-        report.problem_one(_p1_values(learning_rate=None))
+        report.problem_one(p1_values(learning_rate=None))
     with pytest.raises(report.ReportError, match=r"`run.rewards` must hold finite numbers"):
-        report.problem_one(_p1_values(run={"rewards": [1.0, float("nan")], "policy.params": [0, 0, 0, 0]}))
-    values = _p2_values()
+        report.problem_one(p1_values(run={"rewards": [1.0, float("nan")], "policy.params": [0, 0, 0, 0]}))
+    values = p2_values()
     values["test_predictions"] = [0, 1, 5, 0]
     with pytest.raises(report.ReportError, match=r"`test_predictions` must hold class indices 0\.\.1"):
         report.problem_two(values, "derivation")
@@ -117,8 +95,8 @@ def test_bad_notebook_values_are_refused_naming_the_variable():
 
 @pytest.mark.offering
 def test_the_answers_show_the_students_parameters_and_the_notebooks_numbers():
-    p1 = report.problem_one(_p1_values())
-    p2 = report.problem_two(_p2_values(), "Write $z_i = \\tilde w^\\top \\tilde x_i$.\n\n$$\\nabla l = X^\\top (y - p)$$")
+    p1 = report.problem_one(p1_values())
+    p2 = report.problem_two(p2_values(), DERIVATION)
     answers = report.compute_answers(p1, p2)
     text = report.answers_markdown(answers)
     for name, params in (("my first guess", (0.1, -0.2, -1.0, -0.3)), ("pole angle only", (0, 0, -1, 0))):
@@ -341,8 +319,8 @@ def test_answers_tex_sets_whatever_a_student_writes(tmp_path):
     """Names, parameter labels and --name with LaTeX's special characters compile and print as written."""
     _latex_tools()
     tricky = r"my #1 & 100% guess_{x} ~ ^ \ <ok> | θ"
-    p1 = report.problem_one(_p1_values(tried={tricky: [0.1, -0.2, -1.0, -0.3]}))
-    p2 = report.problem_two(_p2_values(), "Write $z_i = \\tilde w^\\top \\tilde x_i$.\n\n$$\\nabla l = X^\\top (y - p)$$")
+    p1 = report.problem_one(p1_values(tried={tricky: [0.1, -0.2, -1.0, -0.3]}))
+    p2 = report.problem_two(p2_values(), DERIVATION)
     for name, figure in report.make_figures(p1, p2).items():
         report.save_figure(figure, tmp_path, name)
     text, _ = report.answers_latex(report.compute_answers(p1, p2), name='Ada "B" & Co_1 </x>')
@@ -399,7 +377,6 @@ def report_run(tmp_path_factory):
     of it as Windows does: ``foreign_os``), from another folder, into the folder where the hand-in puts it
     (``handin/report``, which does not exist yet). Its output is read as Windows writes a pipe (cp1252)."""
     import editions
-    from day_one import find_python, kit_env, student_python, versions_tested
 
     from hwtools.todos import TODO_BY_ID
 
@@ -425,16 +402,10 @@ def answers_md(out_dir):
     return (out_dir / report.ANSWERS_MD).read_text(encoding="utf-8")
 
 
-def _output_text(page):
-    """What the executed notebook printed: the text of its output areas."""
-    blocks = re.findall(r'<div class="jp-RenderedText[^"]*"[^>]*>\s*<pre>(.*?)</pre>', page, flags=re.DOTALL)
-    return "\n".join(html.unescape(re.sub(r"<[^>]+>", "", block)) for block in blocks)
-
-
 @pytest.fixture(scope="module")
 def printed(out_dir):
     """{notebook file name: the text its cells printed when the report executed it}."""
-    return {name: _output_text((out_dir / name.replace(".ipynb", ".html")).read_text(encoding="utf-8"))
+    return {name: output_text((out_dir / name.replace(".ipynb", ".html")).read_text(encoding="utf-8"))
             for name in report.NOTEBOOKS}
 
 
@@ -769,13 +740,23 @@ def test_latex_typesets_the_students_derivation(latex):
     assert not missing, f"not in answers.tex: {missing}"
 
 
+# --- every cell prints what it printed on Linux (issue 39.4; on macOS and a hub: test_other_systems.py) -------------
+
+
+def test_every_cell_prints_what_it_prints_on_linux(report_run, tmp_path):
+    """Each cell of both notebooks that nbval compares, the check cells and the learning-rate sweep among them, run by
+    the report in a kernel of the Windows profile's Python, prints what it prints on Linux. Made to fail once: with the
+    grader's child in the code page (no UTF-8 mode, no ``printable_output``) the report stopped at check("1.1.1"):
+    "The check could not run: ... UnicodeEncodeError: 'charmap' codec can't encode character '\\u0141'"."""
+    out_dir, _, edition, _ = report_run
+    assert_printed_as_on_linux(out_dir, linux_check_texts(edition, tmp_path))
+
+
 # --- the student's words through later hand-ins (this test changes the report's folder: it runs last) ------------
 
 
 def _hand_in(report_run, *options):
     _, _, edition, python = report_run
-    from day_one import kit_env
-
     done = subprocess.run([str(python), "-m", "hwtools.handin", "alovelac", "--name", "Ada Lovelace", *options],
                           capture_output=True, encoding="cp1252", errors="replace", timeout=REPORT_TIMEOUT,
                           env=kit_env(edition, python), cwd=edition)
