@@ -153,8 +153,8 @@ def execute_notebook(path, kernel_dir, export=None):
     )
     if zmq.has("curve") and "transport_encryption" in kernel_manager.trait_names():
         kernel_manager.transport_encryption = "auto"  # encrypt the kernel's local sockets where it can
-    client = NotebookClient(
-        notebook, km=kernel_manager, timeout=CELL_TIMEOUT, kernel_name="python3",
+    client = NotebookClient(  # one output per stream, as Jupyter shows it, however the kernel sent it in pieces
+        notebook, km=kernel_manager, timeout=CELL_TIMEOUT, kernel_name="python3", coalesce_streams=True,
         resources={"metadata": {"path": str(Path(path).parent)}},
     )
     try:
