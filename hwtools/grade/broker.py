@@ -53,6 +53,7 @@ STOPS = {
     "garbled": "the worker sent something that is not a valid message",
     "violation": "the worker broke the protocol (an answer out of turn, a second answer, or one to a request "
                  "never made)",
+    "lost": "the grading's sandbox was lost before this run, so it did not run (grade again)",
 }
 TIMEOUTS = {"the CPU-time limit": "the CPU-time limit was reached",  # the launcher's words, without its numbers
             "the wall-clock limit of": "the wall-clock limit was reached (the code waited)",
@@ -146,8 +147,10 @@ class Conversation:
         self.sent += 1
         try:
             self.process.send(dict(message, n=self.sent))
-        except OSError:  # the worker is gone; a message it left unread came out of turn
-            raise Stop("violation" if isinstance(self.process.receive(), dict) else "ended") from None
+        except OSError:  # the worker is gone (or its grading's sandbox); a message it left unread came out of turn
+            answer = self.process.receive()
+            raise Stop("violation" if isinstance(answer, dict) else "lost" if answer.startswith("lost:") else
+                       "ended") from None
         except channel.ChannelTimeout as timeout:
             raise _stop(f"timeout:{timeout}") from None
         return self.sent

@@ -40,7 +40,7 @@ from hwtools.grade import blame, blocks, broker, checks, judging, kits, mistakes
 from hwtools.grade.answer_key import ANSWER_KEY
 from hwtools.grade.in_sandbox.channel import fingerprint
 from hwtools.grade.reference import ReferencePool, ServerFailed
-from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Budget, Sandbox
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Sandbox
 from hwtools.todos import TODO_BY_ID, TODOS
 
 KIT_ROOT = Path(__file__).resolve().parents[2]
@@ -249,7 +249,7 @@ class Grader:
         # A preview (no hidden input) runs the student's own code in servers beside its runs: it needs no turn.
         pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
         graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
-        budget = Budget(self.budget)  # this grading's wall clock, and the turn its runs take
+        budget = self.sandbox.grading(self.budget)  # this grading's wall clock, the turn its runs take, its zygote
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:
                 if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
@@ -261,6 +261,7 @@ class Grader:
                                                                                self._scrub, self._limits, []))
             self._blame(result["todos"], read, layout, pool, budget)
         finally:
+            budget.close()
             if pool is not None and pool is not self.pool:
                 pool.close()
         entries = result["todos"]

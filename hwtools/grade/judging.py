@@ -18,7 +18,7 @@ from hwtools.grade.checks.verdicts import Verdict, show
 from hwtools.grade.in_sandbox.channel import fingerprint, text
 from hwtools.todos import TODO_BY_ID
 
-_STATUS = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed"}
+_STATUS = {"timeout": "time limit", "ended": "crashed", "garbled": "crashed", "violation": "crashed", "lost": "crashed"}
 
 
 def service_key(probe, args):

@@ -13,6 +13,7 @@ from __future__ import annotations
 import io
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -106,6 +107,29 @@ def fake_bwrap(tmp_path):
 @pytest.fixture(scope="module")
 def user(user_python):
     return Sandbox(python=user_python, isolation="user", time_limit=30)
+
+
+class Forked:
+    """``isolated`` with every run forked by the zygote of one grading (``Sandbox.grading``), as a
+    grader's runs of student code are under bubblewrap."""
+
+    def __init__(self, box):
+        self.box, self.grading = box, box.grading(3600)
+
+    def start(self, kit, time_limit=None, trusted=False, budget=None):
+        return self.box.start(kit, time_limit, trusted, self.grading)
+
+    def __getattr__(self, name):
+        return getattr(self.box, name)
+
+
+@pytest.fixture()
+def zygote(isolated):
+    if isolated.kind != "bwrap":
+        pytest.skip("bubblewrap does not work here")
+    forked = Forked(isolated)
+    yield forked
+    forked.grading.close()
 
 
 @pytest.mark.parametrize("mode", ["isolated", "user"])
@@ -235,7 +259,7 @@ def test_the_user_sandbox_runs_as_a_user_of_its_own_on_a_kit_only_it_can_read(us
     assert not folder.base.exists(), "the run's folder is deleted after it"
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_memory_limit(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
@@ -248,7 +272,7 @@ def test_memory_limit(mode, request, tmp_path):
     assert values(run(kit, box)).tolist() == [0.0]
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_endless_loop_ends_at_the_time_limit(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, "while True:\n    pass\nvalues = None")
@@ -257,7 +281,7 @@ def test_endless_loop_ends_at_the_time_limit(mode, request, tmp_path):
     assert outcome.status == "timeout" and "CPU-time limit" in outcome.detail, outcome
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_the_time_limit_counts_cpu_so_a_slow_machine_is_no_time_out(mode, request, tmp_path, monkeypatch):
     """Code that takes longer on the wall clock than its CPU limit (as on a loaded machine) is not
     timed out; code that waits for ever is, by the wall-clock backstop (here with 1 s of slack in place
@@ -272,7 +296,7 @@ def test_the_time_limit_counts_cpu_so_a_slow_machine_is_no_time_out(mode, reques
     assert outcome.seconds < 10, "stopped by the wall-clock backstop, not later"  # from the run's begin
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_a_child_that_holds_the_error_stream_does_not_hold_the_grader(mode, request, tmp_path):
     """A child that leaves the session and clears its environment (so that without a sandbox
     nothing finds it), keeping the worker's standard output and error open for CHILD_SECONDS."""
@@ -315,7 +339,7 @@ def worker_processes(kit, settle=3.0, before=frozenset()):
                           (b"worker.py" in cmdline and str(kit).encode() in cmdline), settle, before)
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_a_fork_does_not_outlive_the_run(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
@@ -353,7 +377,7 @@ def test_a_setsid_child_with_an_empty_environment_does_not_outlive_the_run(mode,
     assert not sleeping(), "a child with an empty environment outlived the run"
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_prints_and_exits_do_not_forge_answers(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
@@ -368,7 +392,7 @@ def test_prints_and_exits_do_not_forge_answers(mode, request, tmp_path):
     assert results["c1"]["status"] == "error" and results["c1"]["error"].startswith("SystemExit")
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_garbage_on_the_answer_channel_is_caught(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, textwrap.dedent("""
@@ -523,7 +547,7 @@ def at_once(box, kits_, budgets):
     return outcomes
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_two_runs_of_one_grading_never_overlap(mode, request, tmp_path):
     """A grading's runs, started side by side (as a grader's threads start them), take its turn: the
     second one's code starts only after every process of the first one is gone (its child too), so
@@ -541,6 +565,62 @@ def test_two_runs_of_one_grading_never_overlap(mode, request, tmp_path):
     """)) for name in ("a", "b")]
     (a_start, a_end), (b_start, b_end) = (values(outcome).tolist() for outcome in at_once(box, two, [grading] * 2))
     assert a_end <= b_start or b_end <= a_start, "two runs of one grading overlapped"
+
+
+ZYGOTE_RUN = textwrap.dedent("""
+    import hashlib, resource, signal
+    others = [pid for pid in map(int, filter(str.isdigit, os.listdir("/proc"))) if pid not in (1, os.getpid())]
+    descriptors = len(os.listdir("/proc/self/fd"))
+
+    def refused(path, mode):
+        try:
+            open(path, mode).close()
+            return 0.0
+        except PermissionError:
+            return 1.0
+
+    values = np.array([{mine}, len(others), descriptors, refused("/proc/1/environ", "rb"), refused("/proc/1/mem", "r+b"),
+                       float(int(hashlib.sha256(repr(sorted(os.environ.items())).encode()).hexdigest()[:12], 16)),
+                       float(sorted(os.listdir("/kit")) == ["_hwgrade", "hwlib"]),
+                       np.random.random()] + [float(resource.getrlimit(getattr(resource, name))[0]) for name in
+                                              ("RLIMIT_CPU", "RLIMIT_AS", "RLIMIT_FSIZE", "RLIMIT_NOFILE")])
+    if os.fork() == 0:  # what a run leaves for the next one: a child, its environment, signals to the zygote
+        time.sleep(600)
+    os.environ["HWGRADE_LEFT"] = "1"
+    for number in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGUSR1, signal.SIGSTOP, signal.SIGKILL):
+        os.kill(1, number)
+""")
+
+
+def test_a_zygote_s_runs_begin_alone_and_inherit_nothing_of_each_other(isolated, zygote, tmp_path):
+    """Three runs forked one after the other by one grading's zygote, each of which leaves a child
+    behind, changes its environment and signals the zygote (SIGINT, SIGTERM, SIGHUP, SIGUSR1,
+    SIGSTOP, SIGKILL): each begins with no process of the sandbox alive but itself and the zygote
+    (PID 1), with the descriptors, environment and limits of a run in a sandbox of its own (its CPU
+    limit its own, not the zygote's), its own draw of numpy's global generator, its own kit alone in
+    ``/kit``, and cannot read or write the zygote's memory (non-dumpable)."""
+    runs = [make_kit(tmp_path / str(index), ZYGOTE_RUN.format(mine=index)) for index in range(4)]
+    alone = values(run(runs[0], isolated)).tolist()
+    forked = [values(run(kit, zygote)).tolist() for kit in runs[1:]]
+    for index, seen in enumerate(forked, 1):
+        assert seen[0] == index, "a run ran another run's code"
+        assert seen[1] == 0, f"run {index} began beside {seen[1]:.0f} processes of the run before it"
+        assert seen[2] <= alone[2], "a forked run holds descriptors that a run of its own does not"
+        assert seen[3:5] == [1.0, 1.0], "a run could read or write the zygote's memory"
+        assert seen[5:7] == alone[5:7] and seen[6] == 1.0, "a run's environment or kit was not its own"
+        assert seen[8:] == alone[8:], "a forked run's limits are not those of a run"
+    assert len({seen[7] for seen in forked}) == 3, "runs drew the same numbers from numpy's global generator"
+
+
+def test_a_lost_zygote_fails_its_grading_s_later_runs(zygote, tmp_path):
+    """Fail closed: once a grading's zygote is gone (killed from outside, as the kernel's OOM killer
+    might), every later run of that grading fails, in fixed words, and none runs elsewhere."""
+    kit = make_kit(tmp_path, "values = np.array([1.0])")
+    assert values(run(kit, zygote)).tolist() == [1.0]
+    signal.pidfd_send_signal(zygote.grading.zygote.process._init, signal.SIGKILL)
+    for _ in range(2):
+        outcome, results = run(kit, zygote)
+        assert (outcome.status, outcome.detail, results) == ("lost", broker.STOPS["lost"], {})
 
 
 def test_the_runs_of_two_gradings_run_side_by_side(plain, tmp_path):
@@ -788,7 +868,7 @@ MAKE_EVERYTHING = textwrap.dedent("""
 """)
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user"])
 def test_a_run_makes_no_file_no_socket_and_no_namespace(mode, request, tmp_path):
     """Every kind of file (regular, folder, symlink, fifo, socket, an unnamed one held open), in every
     place the run may write, tries times each (symlinks of 4,000 bytes: 262,144 once took 1 GiB under
@@ -809,7 +889,7 @@ def test_a_run_makes_no_file_no_socket_and_no_namespace(mode, request, tmp_path)
     assert not left, "a run's files outlived it"
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user", "plain"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user", "plain"])
 def test_every_process_of_a_run_has_an_open_file_limit(mode, request, tmp_path):
     box = request.getfixturevalue(mode)
     kit = make_kit(tmp_path, "import resource\nvalues = np.array(resource.getrlimit(resource.RLIMIT_NOFILE), dtype=float)")
@@ -967,7 +1047,7 @@ def test_a_run_s_processes_are_bounded_as_a_whole(mode, group, request, monkeypa
     assert values(run(kit, box)).tolist()[0] < cgroups.MAX_PROCESSES
 
 
-@pytest.mark.parametrize("mode", ["isolated", "user"])
+@pytest.mark.parametrize("mode", ["isolated", "zygote", "user"])
 def test_a_run_s_memory_is_bounded_as_a_whole(mode, request, tmp_path):
     """Four children of 400 MiB each (every one under the 1 GiB per-process limit) do not all live
     at once: the run's cgroup holds the whole run, tmpfs files included, to its memory limit."""

@@ -389,6 +389,8 @@ def _warm():
 
 
 def main(kit_dir, requests, answers):
+    global MAIN_PID
+    MAIN_PID = os.getpid()  # a zygote imported this module before it forked this process
     probes.KIT_DIR = kit_dir
     _IO.update({"in": requests, "out": answers})
     _warm()

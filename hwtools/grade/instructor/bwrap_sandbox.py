@@ -130,11 +130,12 @@ def seccomp_program():
     return result.stdout
 
 
-def bwrap_options(python, kit_dir, program, userns=None):
+def bwrap_options(python, kit_dir, program, userns=None, zygote=False):
     """bubblewrap's options (given to it through a pipe, not on its command line) that run a
     Python on ``kit_dir`` with ``WORKER`` as ``/grader/worker.py`` under the seccomp filter read
     from descriptor ``program`` (``data_pipe(seccomp_program())``), in user namespace ``userns`` (a
-    descriptor from ``host_user_namespace``, else in one of bwrap's own)."""
+    descriptor from ``host_user_namespace``, else in one of bwrap's own). ``zygote``: the command is
+    the sandbox's PID 1 (no init of bubblewrap's), and the grader's runtime is ``/grader/_hwgrade``."""
     users = ["--unshare-user"] if userns is None else ["--userns", str(userns)]
     args = ["--seccomp", str(program), "--unshare-ipc", "--unshare-pid", "--unshare-net", "--unshare-uts",
             "--unshare-cgroup-try", *users, "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL", "--die-with-parent",
@@ -146,6 +147,7 @@ def bwrap_options(python, kit_dir, program, userns=None):
     for path in python_paths(python):
         if not path.startswith("/usr/"):
             args += ["--ro-bind", path, path]
+    args += ["--as-pid-1", "--ro-bind", str(WORKER.parent), "/grader/_hwgrade"] if zygote else []
     args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(WORKER), "/grader/worker.py",
              "--remount-ro", "/",  # the sandbox's root is a tmpfs without a size limit: read-only once built
              "--chdir", "/tmp", "--clearenv"]
