@@ -508,34 +508,36 @@ class Zygote:
             raise ConnectionError("the zygote closed its socket")
         return json.loads(data)
 
-    def ask(self, request, expect, fds=(), seconds=GONE_SECONDS):
-        """The zygote's reply ``expect`` to ``request`` (with descriptors ``fds``) within ``seconds``
-        (the first waits for its imports, ``SETUP_SECONDS``, before): else it is lost (ZygoteLost)."""
+    def _start(self):
+        """(lock held) Wait for the zygote's imports, once; else it is lost."""
+        if self.lost is None and not self._ready:
+            try:
+                self._ready = self._receive(SETUP_SECONDS) == {"op": "ready"}
+            except (OSError, ValueError):
+                pass
+            if not self._ready:
+                self._lose("it did not start")
+
+    def ready(self):
+        """Wait for the zygote's imports (a run does before its turn and its clock)."""
         with self._lock:
+            self._start()
+
+    def ask(self, request, expect, fds=(), seconds=GONE_SECONDS):
+        """The zygote's reply ``expect`` to ``request`` (with descriptors ``fds``) within ``seconds``:
+        else it is lost (ZygoteLost)."""
+        with self._lock:
+            self._start()
             if self.lost is None:
                 try:
-                    if not self._ready:
-                        self._ready = self._receive(SETUP_SECONDS) == {"op": "ready"}
-                    if self._ready:
-                        socket.send_fds(self.channel, [json.dumps(request).encode()], list(fds))
-                        reply = self._receive(seconds)
-                        if isinstance(reply, dict) and reply.get("op") == expect:
-                            return reply
+                    socket.send_fds(self.channel, [json.dumps(request).encode()], list(fds))
+                    reply = self._receive(seconds)
+                    if isinstance(reply, dict) and reply.get("op") == expect:
+                        return reply
                 except (OSError, ValueError):
                     pass
                 self._lose(f"it did not answer {request['op']!r}")
             raise ZygoteLost(f"{LOST_WORDS} ({self.lost})")
-
-    def ready(self):
-        """Wait for the zygote's imports (outside the grading's turn)."""
-        with self._lock:
-            if self.lost is None and not self._ready:
-                try:
-                    self._ready = self._receive(SETUP_SECONDS) == {"op": "ready"}
-                except (OSError, ValueError):
-                    pass
-                if not self._ready:
-                    self._lose("it did not start")
 
     def fork(self, kit_dir, fds, limits):
         """Put a copy of the kit ``kit_dir`` in as ``/kit`` and fork a run on it, its
@@ -589,7 +591,6 @@ class Zygote:
 
     def close(self):
         with self._lock:
-            self.lost = self.lost or "closed"
             self._lose("closed")
             self._folder.cleanup()
 
