@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import AUTO_POINTS, TODO_BY_ID, Grader, blocks, checks, kits, mistakes
+from hwtools.grade import AUTO_POINTS, MANUAL_POINTS, TODO_BY_ID, Grader, blocks, checks, kits, mistakes
 from hwtools.grade.checks.verdicts import show
 from hwtools.grade.in_sandbox import served
 from hwtools import check_cell
@@ -96,7 +96,7 @@ def test_instructor_kit_earns_every_point(grader):
     result = grader.grade(KIT)
     assert points(result) == full_points(), shortfall(result)
     assert result["total"]["auto_earned"] == AUTO_POINTS
-    assert result["total"]["manual_possible"] == 21
+    assert result["total"]["manual_possible"] == MANUAL_POINTS
     assert all(check["passed"] for entry in result["todos"] for check in entry["checks"])
     assert result["isolated"] == grader.sandbox.isolated
 
