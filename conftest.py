@@ -12,12 +12,14 @@ os.environ["MPLBACKEND"] = "Agg"
 
 pytest_plugins = ("hwtools.pytest_todo", "hwtools.pytest_overrun")
 
-# The tests that run student code (graders, sandboxes, class runs). Under the README's test command
-# (-n 2 --dist loadfile) one process runs these files, starting with them, and the other everything
-# else: measured balanced (benchmarks/RESULTS.md, the test suite) when runs of student code took turns
-# machine-wide. They no longer do (hwtools/grade/sandbox.py: only a grading's own runs take turns); the
-# split stays until another is measured shorter.
-RUN_STUDENT_CODE = "tests/grader/"
+# The README's test command (-n 2 --dist loadfile) hands each process a file at a time, in collection order: the
+# heaviest files first, then the rest in folder order, so that the two processes end together (longest first, as a
+# scheduler would). By their times in the 2026-12-07 whole-suite run (benchmarks/RESULTS.md, the test suite).
+HEAVIEST_FIRST = ("tests/grader/test_grading.py", "tests/grader/test_checks.py", "tests/browser/test_browser.py",
+                  "tests/grader/test_classroom.py", "tests/grader/test_gradescope.py",
+                  "tests/notebooks/test_other_systems.py", "tests/notebooks/test_report.py",
+                  "tests/instructor/test_student_path.py", "tests/instructor/test_student_edition.py",
+                  "tests/grader/test_sandbox.py", "tests/browser/test_browser_dayone.py")
 # A file whose tests run once per system (a module-scoped run each): each system's tests are a unit of their own,
 # so that the two processes share them.
 BY_SYSTEM = "tests/notebooks/test_other_systems.py"
@@ -38,7 +40,8 @@ def pytest_unconfigure(config):
 
 
 def pytest_collection_modifyitems(items):
-    items.sort(key=lambda item: not item.nodeid.startswith(RUN_STUDENT_CODE))  # stable: files stay in order
+    rank = {path: index for index, path in enumerate(HEAVIEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.partition("::")[0], len(rank)))  # stable: the rest stay in order
 
 
 @pytest.hookimpl(optionalhook=True)
@@ -47,10 +50,10 @@ def pytest_xdist_make_scheduler(config, log):
         return None
     from xdist.scheduler import LoadFileScheduling  # noqa: PLC0415 - only where xdist runs the tests
 
-    class StudentCodeFilesTogether(LoadFileScheduling):
+    class EachSystemAUnit(LoadFileScheduling):
         def _split_scope(self, nodeid):
             if nodeid.startswith(BY_SYSTEM):
                 return f"{BY_SYSTEM}[{nodeid.rpartition('[')[2]}"
-            return RUN_STUDENT_CODE if nodeid.startswith(RUN_STUDENT_CODE) else super()._split_scope(nodeid)
+            return super()._split_scope(nodeid)
 
-    return StudentCodeFilesTogether(config, log)
+    return EachSystemAUnit(config, log)

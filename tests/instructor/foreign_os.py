@@ -32,15 +32,22 @@ cannot be removed, renamed or replaced, nor a folder that holds one (``Permissio
 the lock shim, ``held``); ``shutil.rmtree`` works by names, as there; SIGINT (Ctrl+C, Kernel >
 Interrupt) reaches Python as Windows' console handler does, from another thread
 (``_thread.interrupt_main``), so it wakes no blocking wait (cpython gh-74157); ``taskkill`` on ``PATH``
-ends a process tree (``/T``), by parent ids as Windows does; no bubblewrap, ``prlimit`` or Chromium.
+ends a process tree (``/T``), by parent ids as Windows does; no bubblewrap, ``prlimit`` or Chromium on ``PATH``,
+and a Chrome where Windows installs one (``%PROGRAMFILES%``, here the environment's own ``Program Files``: a link
+to this box's Chromium); ``sys.platform`` is "win32" and ``os.name`` "nt" to the kit's code (its caches go to
+``%LOCALAPPDATA%``, it looks for browsers there and in ``%PROGRAMFILES%``, its worker gets a Windows environment:
+``kits.worker_env``); a process started from outside the profile has the folders of a user's session
+(``USERPROFILE``, the home; ``LOCALAPPDATA``, ``APPDATA``, ``PROGRAMFILES``), a child given an environment of its
+own has what it was given, as on Windows (``_windows_session``).
 
 ``"hub"`` (a JupyterHub's single-user server): the home folder ``home`` is read-only for the kit
 (``OSError`` EROFS on every write, folder or lock file made there), and user namespaces are off (the
 ``bwrap`` on ``PATH`` fails as it does there). Linux otherwise: ``prlimit`` and Debian's Chromium on
 ``PATH`` (a course's hub image with the browser the report prints with).
 
-With a ``home`` (macOS, a hub), a process has that home (``HOME``) and none of this test run's cache variables
-(``HWLIB_CACHE_DIR``, ``XDG_CACHE_HOME``): the kit keeps its caches where that system does, in that home.
+With a ``home``, a process has that home (``HOME``; on Windows a child's ``USERPROFILE`` where it was given one)
+and none of this test run's cache variables (``HWLIB_CACHE_DIR``, ``XDG_CACHE_HOME``): the kit keeps its caches
+where that system does, in that home.
 
 ``install()`` (no argument) is ``install("windows")``, the profile of issue 32.7.
 """
@@ -92,6 +99,8 @@ CODE_PAGE = "cp1252"
 WINERROR_32 = "[WinError 32] The process cannot access the file because it is being used by another process"
 PROGRAMS_LEFT_OUT = ("bwrap", "prlimit", "chromium", "google-chrome")  # names, and names that start so
 CACHE_VARIABLES = ("HWLIB_CACHE_DIR", "XDG_CACHE_HOME")  # this test run's, not a student's
+PROGRAM_FILES = "Program Files"  # Windows': in the environment's folder (sys.prefix)
+CHROME = ("Google", "Chrome", "Application", "chrome.exe")  # where Windows installs Chrome, under PROGRAM_FILES
 _kit_files = {}
 _system = None
 
@@ -173,13 +182,18 @@ def _guarded_import_module(name, package=None):
 
 # --- the names one system lacks ----------------------------------------------------------------
 
-def _hide(module, names, aware=frozenset()):
-    read = types.ModuleType.__getattribute__
+def _foreign(module, hidden=frozenset(), aware=frozenset(), seen=None):
+    """``module`` as the kit's code sees it on another system: without the names ``hidden`` (to the libraries
+    ``aware`` too), and with ``seen`` ({name: value}: ``sys.platform``, ``os.name``) in place of this box's values
+    (the kit's own branches for that system run; other code keeps Linux's)."""
+    read, frame, seen = types.ModuleType.__getattribute__, sys._getframe, seen or {}
 
     class ForeignModule(types.ModuleType):
         def __getattribute__(self, name):
-            if name in names and _kit_frame(sys._getframe(1), aware):
+            if name in hidden and _kit_frame(frame(1), aware):
                 raise AttributeError(f"module {module.__name__!r} has no attribute {name!r}")
+            if name in seen and _kit_frame(frame(1)):
+                return seen[name]
             return read(self, name)
 
     module.__class__ = ForeignModule
@@ -353,6 +367,24 @@ def lock_shim():
     return shims
 
 
+# --- Windows: a user's session --------------------------------------------------------------------
+
+def _windows_session():
+    """The folders Windows gives every process of a user's session (``USERPROFILE`` the home, ``LOCALAPPDATA``,
+    ``APPDATA``, ``PROGRAMFILES`` here the environment's own ``Program Files``), to a process started from outside
+    the profile (this test run's environment: no ``USERPROFILE``), and so to every child that inherits them. A child
+    given an environment of its own (the grader's worker, ``kits.worker_env``) has what it was given, as Windows
+    passes it (subprocess docs: ``env`` must provide any variable the program needs). The home is ``USERPROFILE``,
+    as Python's on Windows (``HOME`` follows it)."""
+    if "USERPROFILE" not in os.environ:
+        profile = os.path.expanduser("~")
+        programs = os.path.join(sys.prefix, PROGRAM_FILES)
+        os.environ.update({"USERPROFILE": profile, "LOCALAPPDATA": os.path.join(profile, "AppData", "Local"),
+                           "APPDATA": os.path.join(profile, "AppData", "Roaming"), "PROGRAMFILES": programs,
+                           "PROGRAMFILES(X86)": f"{programs} (x86)"})
+    os.environ["HOME"] = os.environ["USERPROFILE"]
+
+
 # --- Windows: Ctrl+C from another thread -------------------------------------------------------
 
 def _interrupt_from_a_thread():
@@ -384,19 +416,6 @@ def _refused_limits():
         return setrlimit(which, limits)
 
     resource.setrlimit = mac_setrlimit
-
-
-def _platform(name):
-    """``sys.platform`` is ``name`` to the kit's code (its own branches for that system run; other code keeps Linux's)."""
-    read, frame = types.ModuleType.__getattribute__, sys._getframe
-
-    class ForeignSys(types.ModuleType):
-        def __getattribute__(self, attribute):
-            if attribute == "platform" and _kit_frame(frame(1)):
-                return name
-            return read(self, attribute)
-
-    sys.__class__ = ForeignSys
 
 
 def _spawn():
@@ -470,9 +489,11 @@ def install(system="windows", home=None):
     if system == "hub":
         _read_only(home or os.path.expanduser("~"))
         return
-    names = UNIX_NAMES if system == "windows" else MAC_MISSING
-    for module, hidden in names.items():
-        _hide(module, hidden, WINDOWS_AWARE if system == "windows" else frozenset())
+    windows = system == "windows"
+    hidden = UNIX_NAMES if windows else MAC_MISSING
+    seen = {sys: {"platform": "win32"}, os: {"name": "nt"}} if windows else {sys: {"platform": "darwin"}}
+    for module in {**hidden, **seen}:
+        _foreign(module, hidden.get(module, ()), WINDOWS_AWARE if windows else frozenset(), seen.get(module))
     for name in ("stat", "lstat", "open", "access", "readlink", "listdir", "scandir"):
         setattr(os, name, _wrap(getattr(os, name), _no_proc))
     opener = _wrap(io.open, _no_proc)
@@ -480,8 +501,8 @@ def install(system="windows", home=None):
         builtins.open = io.open = opener
         _refused_limits()
         _spawn()
-        _platform("darwin")
         return
+    _windows_session()
     builtins.__import__, importlib.import_module = _guarded_import, _guarded_import_module
     select.select = _sockets_only_select
     io.open = opener
@@ -525,7 +546,9 @@ exit 1
 def stripped_path(folder, system="windows"):
     """A new folder ``folder`` of links to every program of this system's PATH folders but bubblewrap,
     ``prlimit`` and Chromium (``PROGRAMS_LEFT_OUT``; a hub: but bubblewrap), for ``PATH``, with what ``system``
-    has instead (Windows: ``taskkill``; a hub: a ``bwrap`` that cannot make namespaces); returns it."""
+    has instead (Windows: ``taskkill``, and a Chrome where Windows installs one, in the environment's
+    ``Program Files`` beside ``folder``: a link to this box's Chromium; a hub: a ``bwrap`` that cannot make
+    namespaces); returns it."""
     folder = os.path.abspath(folder)
     os.makedirs(folder)
     for directory in ("/usr/local/sbin", "/usr/local/bin", "/usr/sbin", "/usr/bin", "/sbin", "/bin"):
@@ -541,4 +564,9 @@ def stripped_path(folder, system="windows"):
         with open(path, "w", encoding="utf-8") as handle:
             handle.write(text)
         os.chmod(path, 0o755)
+    browser = system == "windows" and (shutil.which("chromium") or shutil.which("google-chrome"))
+    if browser:
+        chrome = os.path.join(os.path.dirname(folder), PROGRAM_FILES, *CHROME)
+        os.makedirs(os.path.dirname(chrome))
+        os.symlink(browser, chrome)
     return folder

@@ -147,7 +147,11 @@ def behaviours(folder):
         "remove a held file": attempt(lambda: os.remove(held)),
         "write in home": attempt(lambda: open(os.path.join(os.path.expanduser("~"), "note.txt"), "w").close()),
         "SIGINT in a wait": interrupted_wait(),
-        "sys.platform": sys.platform,
+        "sys.platform, os.name": [sys.platform, os.name],
+        "the user's folders": [os.environ.get(name) for name in ("USERPROFILE", "LOCALAPPDATA", "PROGRAMFILES")],
+        "a child given USERPROFILE: its home, LOCALAPPDATA": attempt(lambda: subprocess.run(
+            [sys.executable, "-c", "import os; print(os.path.expanduser('~'), os.environ.get('LOCALAPPDATA'))"],
+            env={"USERPROFILE": folder}, capture_output=True).stdout.decode().split()),
         "home, and the caches' variables": [os.path.expanduser("~"), os.environ.get("HWLIB_CACHE_DIR"), os.environ.get("XDG_CACHE_HOME")],
         "browser, bwrap and prlimit on PATH": [name for name in ("chromium", "bwrap", "prlimit") if shutil.which(name)],
     }
@@ -159,15 +163,18 @@ if __name__ == "__main__":
     import elsewhere
     json.dump({"kit": behaviours(sys.argv[1]), "other": elsewhere.behaviours(sys.argv[2])}, sys.stdout)
 '''
+WINDOWS_FOLDERS = ["{home}", "{home}/AppData/Local", "{venv}/Program Files"]  # USERPROFILE, LOCALAPPDATA, PROGRAMFILES
 HELD = "PermissionError: [Errno 13] [WinError 32] The process cannot access the file because it is being used by another process: "
 EXPECTED = {  # what a system does differently; "same" as on this Linux box
     "macos": {"kit": {"setrlimit RLIMIT_AS 1 GiB": "ValueError: current limit exceeds maximum limit", "start method": "spawn",
-                      "sys.platform": "darwin"},
+                      "sys.platform, os.name": ["darwin", "posix"]},
               "other": {"setrlimit RLIMIT_AS 1 GiB": "ValueError: current limit exceeds maximum limit", "start method": "spawn"}},
     "windows": {"kit": {"setrlimit RLIMIT_AS 1 GiB": "ModuleNotFoundError: No module named 'resource'",
                         "setrlimit RLIMIT_CPU 600 s": "ModuleNotFoundError: No module named 'resource'", "a child's piped Ł": "1", "open() encoding": "'cp1252'", "remove a held file": HELD + "'{folder}/held.pdf'",
-                        "SIGINT in a wait": "long"},
-                "other": {"a child's piped Ł": "1", "SIGINT in a wait": "long"}},
+                        "SIGINT in a wait": "long", "sys.platform, os.name": ["win32", "nt"], "the user's folders": WINDOWS_FOLDERS,
+                        "a child given USERPROFILE: its home, LOCALAPPDATA": "['{folder}', 'None']"},
+                "other": {"a child's piped Ł": "1", "SIGINT in a wait": "long", "the user's folders": WINDOWS_FOLDERS,
+                          "a child given USERPROFILE: its home, LOCALAPPDATA": "['{folder}', 'None']"}},
     "hub": {"kit": {"write in home": "OSError: [Errno 30] Read-only file system: '{home}/note.txt'"}, "other": {}},
 }
 ON_PATH = {"macos": [], "windows": [], "hub": [name for name in ("chromium", "bwrap", "prlimit") if shutil.which(name, path="/usr/bin")]}
@@ -179,9 +186,12 @@ def test_each_profile_does_what_its_system_does(tmp_path, system):
     variables: macOS refuses a finite RLIMIT_AS and starts with "spawn" (every caller) and is "darwin" to the kit
     (made to fail once: with ``_platform`` left out, the kit read "linux"); Windows pipes a child's text in cp1252, strictly (every caller), opens the kit's files in cp1252,
     refuses the kit the removal of a file held open, and wakes no wait on SIGINT (every caller: Ctrl+C comes from
-    another thread); a hub's home is read-only for the kit, and its PATH has Debian's Chromium and prlimit, and a
-    bwrap that fails. Everything else is as on this Linux box. Made to fail once: without
-    ``_interrupt_from_a_thread`` the Windows profile's waits were "short"."""
+    another thread), and is "win32" and "nt" to the kit, with a user's session folders (USERPROFILE, LOCALAPPDATA,
+    PROGRAMFILES) where a child given an environment of its own has only what it was given; a hub's home is
+    read-only for the kit, and its PATH has Debian's Chromium and prlimit, and a bwrap that fails. Everything else
+    is as on this Linux box. Made to fail once: without ``_interrupt_from_a_thread`` the Windows profile's waits
+    were "short"; with os.name not given the kit read "posix"; without ``_windows_session`` the folders were None;
+    with it setting them in every process, the child's home was the profile's, not its USERPROFILE."""
     home = tmp_path / "home"
     home.mkdir()
     python = student_python(tmp_path / "venv", system=system, home=home)
@@ -199,10 +209,17 @@ def test_each_profile_does_what_its_system_does(tmp_path, system):
     said = json.loads(done.stdout)
     plain = {"setrlimit RLIMIT_AS 1 GiB": "None", "setrlimit RLIMIT_CPU 600 s": "None", "start method": "fork",
              "a child's piped Ł": "0", "a UTF-8 child's piped Ł": repr("Ł\n".encode()), "open() encoding": "'UTF-8'",
-             "remove a held file": "None", "write in home": "None", "SIGINT in a wait": "short", "sys.platform": "linux",
+             "remove a held file": "None", "write in home": "None", "SIGINT in a wait": "short",
+             "sys.platform, os.name": ["linux", "posix"], "the user's folders": [None, None, None],
+             "a child given USERPROFILE: its home, LOCALAPPDATA": f"['{home}', 'None']",
              "home, and the caches' variables": [str(home), None, None], "browser, bwrap and prlimit on PATH": ON_PATH[system]}
+
+    def placed(value, side):
+        names = {"folder": folders[side], "home": home, "venv": tmp_path / "venv"}
+        return value.format(**names) if isinstance(value, str) else [placed(one, side) for one in value]
+
     for side in ("kit", "other"):
-        expected = plain | {name: value.format(folder=folders[side], home=home) for name, value in EXPECTED[system][side].items()}
+        expected = plain | {name: placed(value, side) for name, value in EXPECTED[system][side].items()}
         assert said[side] == expected, side
 
 

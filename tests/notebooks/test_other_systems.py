@@ -102,7 +102,8 @@ def test_a_later_hand_in_keeps_the_words_and_prints_what_linux_prints(later_hand
 @pytest.mark.timeout(EDITION_TESTS_SECONDS + 60)
 def test_the_editions_own_tests_pass(later_hand_in):
     """The edition's own test command, ``python -m pytest`` (its unit tests, both notebooks), on the same system after
-    the hand-in: on the Mac, the notebook's sweep reads back the result the report's run kept. Made to fail once: with
+    the hand-in (its notebooks' sweep trained again: the edition's conftest.py gives each test run a cache folder of its
+    own). Made to fail once: with
     the kit's pytest plugin (hwtools/pytest_overrun.py) asking for os.sched_getaffinity and writing in ~/.cache, the
     Mac's run stopped at "Error while loading plugin" (AttributeError), the hub's too (OSError: [Errno 30])."""
     assert_edition_tests_pass(later_hand_in["python"], later_hand_in["kit"], encoding="utf-8")

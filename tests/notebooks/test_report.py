@@ -27,6 +27,7 @@ import pytest
 from hwlib import settings
 from hwlib.cartpole import CartPoleLinearPolicy, run_policy
 from hwlib.plots.training import PRINT_WIDTH
+import foreign_os
 from day_one import find_python, kit_env, student_python, versions_tested
 from hwtools import report
 from hwtools.report import chromium, words
@@ -370,19 +371,26 @@ def test_without_pandoc_the_derivation_is_kept_as_the_markdown_written(monkeypat
 
 
 @pytest.fixture(scope="module")
-def report_run(tmp_path_factory):
+def windows_home(tmp_path_factory):
+    """The Windows user's home (``USERPROFILE``) of the report's Python."""
+    return tmp_path_factory.mktemp("home")
+
+
+@pytest.fixture(scope="module")
+def report_run(tmp_path_factory, windows_home):
     """Run the command as a student would (the hand-in runs it too: ``hwtools.handin.build_report``): in a
     student edition whose every TODO is done, in a folder named as a student's may be ("Łukasz Zoë/hw1"), with a
     Python like a student's on Windows (the newest tested version where this machine has it, and every process
-    of it as Windows does: ``foreign_os``), from another folder, into the folder where the hand-in puts it
-    (``handin/report``, which does not exist yet). Its output is read as Windows writes a pipe (cp1252)."""
+    of it as Windows does, "win32" to the kit, with a home of its own and a Chrome where Windows installs one:
+    ``foreign_os``), from another folder, into the folder where the hand-in puts it (``handin/report``, which does
+    not exist yet). Its output is read as Windows writes a pipe (cp1252)."""
     import editions
 
     from hwtools.todos import TODO_BY_ID
 
     edition = editions.build(tmp_path_factory.mktemp("edition") / "Łukasz Zoë" / "hw1", tmp_path_factory,
                              keep=frozenset(TODO_BY_ID))
-    python = student_python(tmp_path_factory.mktemp("venv") / "venv", system="windows",
+    python = student_python(tmp_path_factory.mktemp("venv") / "venv", system="windows", home=windows_home,
                             base=find_python(versions_tested()[-1]))
     out_dir = edition / "handin" / "report"
     command = [str(python), "-m", "hwtools.report", str(out_dir), "--name", STUDENT_NAME]
@@ -434,6 +442,20 @@ def test_progress_says_what_was_read_from_each_kernel(report_run):
         assert f"read {', '.join(report.NOTEBOOK_VARIABLES[name])} from its kernel" in stdout
     assert "answers: written" in stdout and "report complete" in stdout
     assert "WARNING" not in stdout and "NOT TYPESET" not in stdout
+
+
+def test_the_sweeps_result_is_kept_where_windows_keeps_a_users_caches(report_run, windows_home):
+    r"""The report's run of p1 on the Windows profile keeps the learning-rate sweep's result in %LOCALAPPDATA%\hwlib.
+    Made to fail once: without ``reuse.folder``'s Windows branch it was kept in ~/.cache/hwlib."""
+    kept = [path.parent for path in windows_home.rglob("sweep-*.npz")]
+    assert kept == [windows_home / "AppData" / "Local" / "hwlib"], kept
+
+
+def test_the_pdf_is_printed_with_the_chrome_where_windows_installs_it(report_run, pdf):
+    """No browser is on the Windows profile's PATH: the report finds the Chrome in %PROGRAMFILES% (a link to this box's
+    Chromium). Made to fail once: without ``browser_candidates``' Windows branch it printed with /usr/bin/chromium."""
+    chrome = Path(report_run[3]).parents[1].joinpath(foreign_os.PROGRAM_FILES, *foreign_os.CHROME)
+    assert f"in {chrome} ..." in report_run[1], report_run[1]
 
 
 def _assert_reads_offline(page, name):
