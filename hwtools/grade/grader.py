@@ -40,7 +40,7 @@ from hwtools.grade import blame, blocks, broker, checks, judging, kits, mistakes
 from hwtools.grade.answer_key import ANSWER_KEY
 from hwtools.grade.in_sandbox.channel import fingerprint
 from hwtools.grade.reference import ReferencePool, ServerFailed
-from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Sandbox
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Sandbox, wall_limit
 from hwtools.todos import TODO_BY_ID, TODOS
 
 KIT_ROOT = Path(__file__).resolve().parents[2]
@@ -520,14 +520,19 @@ class Grader:
             if isinstance(files, str):
                 return None
             student = self._memoized(("visible", kits.files_digest(files), self.pool.digest, todo),
-                                     lambda: self._run_now(todo, files, _phase(visible.visible), [], self.pool))
+                                     lambda: self._run_now(todo, files, _phase(visible.visible), [], self.pool, table))
             run = {"student": student, "reference": self._reference_values(todo)}
             services = self._services(self._service_requests(todo, run, visible), self.pool)
             entry = judging.judge_todo(todo, run, services, visible, self._expected, self._scrub, self._limits, [])
             return mistakes.table_entry(solution, mistakes.signature(visible.visible, student[1], entry))
 
-        with ThreadPoolExecutor(max_workers=self.jobs) as executor:
-            return [known for known in executor.map(signature, wrong) if known is not None]
+        # the table's runs forked by a zygote of their own, in turns, each bounded by its own limits alone
+        table = self.sandbox.grading(len(wrong) * wall_limit(self.sandbox.time_limit))
+        try:
+            with ThreadPoolExecutor(max_workers=self.jobs) as executor:
+                return [known for known in executor.map(signature, wrong) if known is not None]
+        finally:
+            table.close()
 
     # ---- services: the reference re-scores what a student's run produced ------------------
 
