@@ -520,14 +520,15 @@ class Grader:
             if isinstance(files, str):
                 return None
             student = self._memoized(("visible", kits.files_digest(files), self.pool.digest, todo),
-                                     lambda: self._run_now(todo, files, _phase(visible.visible), [], self.pool, table))
+                                     lambda: self._run_now(todo, files, _phase(visible.visible), [], self.pool, forked))
             run = {"student": student, "reference": self._reference_values(todo)}
             services = self._services(self._service_requests(todo, run, visible), self.pool)
             entry = judging.judge_todo(todo, run, services, visible, self._expected, self._scrub, self._limits, [])
             return mistakes.table_entry(solution, mistakes.signature(visible.visible, student[1], entry))
 
-        # the table's runs forked by a zygote of their own, in turns, each bounded by its own limits alone
+        # under bubblewrap the table's runs are forked by a zygote of their own, in turns, each bounded by its own limits
         table = self.sandbox.grading(len(wrong) * wall_limit(self.sandbox.time_limit))
+        forked = table if table.zygote is not None else None  # elsewhere side by side, as before
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:
                 return [known for known in executor.map(signature, wrong) if known is not None]
