@@ -724,9 +724,10 @@ def test_a_submission_s_runs_share_a_wall_clock_budget(isolated, tmp_path, monke
 
     runs = []  # per run of the submission that began: (budget left at its begin, its deadline - its start)
     plain_begin = sandbox.WorkerProcess.begin
+    budget = BUDGET_FACTOR * 1
 
-    def begin(worker):
-        first = worker.budget is not None and not worker.begun
+    def begin(worker):  # (the known mistakes' runs have a grading of their own, without a bound)
+        first = worker.budget is not None and worker.budget.seconds == budget and not worker.begun
         try:
             plain_begin(worker)
         finally:  # the runs are one at a time: nothing else spends this budget while this one is on
@@ -739,7 +740,6 @@ def test_a_submission_s_runs_share_a_wall_clock_budget(isolated, tmp_path, monke
         grader.grade(KIT, todos=["2.2.1"])  # the reference's answers and servers first: not the submission's time
         monkeypatch.setattr(sandbox.WorkerProcess, "begin", begin)
         result = grader.grade(tmp_path / "loops")
-    budget = BUDGET_FACTOR * 1
     entries = [entry for entry in result["todos"] if entry["id"] in checks.GRADED_TODOS]
     assert all(entry["status"] == "time limit" for entry in entries), [(e["id"], e["status"]) for e in entries]
     spent = [entry["id"] for entry in entries if any("time budget was used up" in note for note in entry["notes"])]
