@@ -40,14 +40,23 @@ to this box's Chromium); ``sys.platform`` is "win32" and ``os.name`` "nt" to the
 (``USERPROFILE``, the home; ``LOCALAPPDATA``, ``APPDATA``, ``PROGRAMFILES``), a child given an environment of its
 own has what it was given, as on Windows (``_windows_session``).
 
-``"hub"`` (a JupyterHub's single-user server): the home folder ``home`` is read-only for the kit
-(``OSError`` EROFS on every write, folder or lock file made there), and user namespaces are off (the
-``bwrap`` on ``PATH`` fails as it does there). Linux otherwise: ``prlimit`` and Debian's Chromium on
-``PATH`` (a course's hub image with the browser the report prints with).
+``"hub"`` (a JupyterHub's single-user server): the home folder ``home`` is read-only to all Python code, the kit's
+and every library's (``_read_only``: a write, folder, link or lock file made there is ``OSError`` EROFS, ``mkdir``
+of what is there ``FileExistsError``, ``os.access(..., W_OK)`` false, as a read-only mount answers), with the
+environment of a hub that works there (``_hub_session``): its spawner gives the server, and so every process that
+inherits its environment, the home and the folders its administrator must point elsewhere (``HUB_FOLDERS``:
+Jupyter's runtime files, which have no fallback; JupyterLab's settings and workspaces; IPython's and matplotlib's
+folders, whose fallback is a temporary folder and a warning), here in the environment's own ``hub-scratch``; a
+child the kit gives a home of its own (the grader's worker) keeps it. The shims are Python's: what C code writes
+(Chromium's crash database in ``~/.config/chromium``, dconf's ``~/.cache/dconf``; fontconfig's cache, SQLite's
+files, pdflatex) is not refused. Under a real read-only mount of the home (``unshare -m``, once, 2026-12-07)
+those writers failed quietly, and the hub's hand-in, its PDF and the edition's tests passed as here. User
+namespaces are off (the ``bwrap`` on ``PATH`` fails as it does there). Linux otherwise: ``prlimit`` and Debian's
+Chromium on ``PATH`` (a course's hub image with the browser the report prints with).
 
-With a ``home``, a process has that home (``HOME``; on Windows a child's ``USERPROFILE`` where it was given one)
-and none of this test run's cache variables (``HWLIB_CACHE_DIR``, ``XDG_CACHE_HOME``): the kit keeps its caches
-where that system does, in that home.
+With a ``home``, a process has that home (``HOME``; on Windows a child's ``USERPROFILE``, on a hub a child's
+``HOME``, where it was given one) and none of this test run's cache variables (``HWLIB_CACHE_DIR``,
+``XDG_CACHE_HOME``): the kit keeps its caches where that system does, in that home.
 
 ``install()`` (no argument) is ``install("windows")``, the profile of issue 32.7.
 """
@@ -101,6 +110,14 @@ PROGRAMS_LEFT_OUT = ("bwrap", "prlimit", "chromium", "google-chrome")  # names, 
 CACHE_VARIABLES = ("HWLIB_CACHE_DIR", "XDG_CACHE_HOME")  # this test run's, not a student's
 PROGRAM_FILES = "Program Files"  # Windows': in the environment's folder (sys.prefix)
 CHROME = ("Google", "Chrome", "Application", "chrome.exe")  # where Windows installs Chrome, under PROGRAM_FILES
+HUB_SCRATCH = "hub-scratch"  # a hub's writable place for what its users' programs keep (/tmp, a volume): in sys.prefix
+HUB_FOLDERS = {  # what a hub's administrator must point there, the home being read-only (each program's own variable)
+    "JUPYTER_RUNTIME_DIR": "jupyter-runtime",  # jupyter_core: a server's and its kernels' files; no fallback
+    "JUPYTERLAB_SETTINGS_DIR": "lab-user-settings",  # JupyterLab (and Notebook 7): the settings a user changes
+    "JUPYTERLAB_WORKSPACES_DIR": "lab-workspaces",  # JupyterLab: the layout it saves as the user works
+    "IPYTHONDIR": "ipython",  # IPython: its profile, history; else a temporary folder, with a warning
+    "MPLCONFIGDIR": "matplotlib",  # matplotlib: its config and font cache; else a temporary folder, with a warning
+}
 _kit_files = {}
 _system = None
 
@@ -426,15 +443,35 @@ def _spawn():
 
 # --- a JupyterHub: a read-only home ------------------------------------------------------------
 
-def _read_only(home):
-    home = os.path.realpath(home)
+def _hub_session(home):
+    """What the hub's spawner gives its single-user server, and so every process that inherits its environment: the
+    home ``home`` (``HOME``) and the folders its administrator must point away from a read-only home (``HUB_FOLDERS``,
+    here in the environment's own ``HUB_SCRATCH``), to a process started from outside the profile (this test run's
+    environment: its ``HOME`` unset, this box's user's or the hub's); a child the kit gave a home of its own (the
+    grader's worker, ``kits.worker_env``) has what it was given, as on a hub."""
+    import pwd  # noqa: PLC0415 - a hub is Linux
 
-    def under(path):
+    given = os.environ.get("HOME")
+    if given and os.path.realpath(given) not in (home, os.path.realpath(pwd.getpwuid(os.getuid()).pw_dir)):
+        return
+    os.environ["HOME"] = home
+    scratch = os.path.join(sys.prefix, HUB_SCRATCH)
+    os.makedirs(scratch, exist_ok=True)
+    os.environ.update({variable: os.path.join(scratch, folder) for variable, folder in HUB_FOLDERS.items()})
+
+
+def _read_only(home):
+    """Every write under ``home`` by any Python code of this process refused as a read-only file system refuses it
+    (``OSError`` EROFS; ``mkdir`` of what exists: ``FileExistsError``), and ``os.access(..., W_OK)`` false there."""
+    def under(path, kwargs):
         if path is None or isinstance(path, int):
             return False
         try:
-            path = os.path.realpath(os.fsdecode(path))
-        except (TypeError, ValueError):
+            path = os.fsdecode(path)
+            if kwargs.get("dir_fd") is not None and not os.path.isabs(path):
+                path = os.path.join(os.readlink(f"/proc/self/fd/{kwargs['dir_fd']}"), path)
+            path = os.path.realpath(path)
+        except (TypeError, ValueError, OSError):
             return False
         return path == home or path.startswith(home + os.sep)
 
@@ -443,32 +480,46 @@ def _read_only(home):
 
     def writes(args, kwargs):
         path = _path_of(args, kwargs)
-        if under(path) and _asked_by_kit(sys._getframe(2)):
+        if under(path, kwargs):
             refuse(path)
 
-    def moves(args, kwargs):
-        for path in args[:2]:
-            if under(path) and _asked_by_kit(sys._getframe(2)):
+    def makes(args, kwargs):  # a folder that is there: FileExistsError, as the kernel says first
+        path = _path_of(args, kwargs)
+        if under(path, kwargs) and not os.path.lexists(path):
+            refuse(path)
+
+    def moves(args, kwargs):  # from and to
+        for path in (*args[:2], kwargs.get("src"), kwargs.get("dst")):
+            if under(path, kwargs):
                 refuse(path)
+
+    def links(args, kwargs):  # to
+        path = args[1] if len(args) > 1 else kwargs.get("dst")
+        if under(path, kwargs):
+            refuse(path)
 
     def os_open(args, kwargs):
         flags = args[1] if len(args) > 1 else kwargs.get("flags", 0)
-        if flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_TRUNC | os.O_APPEND):
+        if flags & (os.O_WRONLY | os.O_RDWR | os.O_TRUNC | os.O_APPEND) or flags & os.O_CREAT and not os.path.lexists(
+                _path_of(args, kwargs)):
             writes(args, kwargs)
 
-    for name in ("mkdir", "remove", "unlink", "rmdir"):
+    for name in ("remove", "unlink", "rmdir", "chmod", "utime", "truncate"):
         setattr(os, name, _wrap(getattr(os, name), writes))
-    for name in ("rename", "replace"):
-        setattr(os, name, _wrap(getattr(os, name), moves))
-    os.open = _wrap(os.open, os_open)
-    opener = io.open
+    for name, check in (("rename", moves), ("replace", moves), ("link", links), ("symlink", links)):
+        setattr(os, name, _wrap(getattr(os, name), check))
+    os.mkdir, os.open = _wrap(os.mkdir, makes), _wrap(os.open, os_open)
+    access, opener = os.access, io.open
+
+    def hub_access(path, mode, *args, **kwargs):
+        return access(path, mode, *args, **kwargs) and not (mode & os.W_OK and under(path, kwargs))
 
     def hub_open(file, mode="r", *args, **kwargs):
-        if any(flag in mode for flag in "wax+") and under(file) and _asked_by_kit(sys._getframe(1)):
+        if any(flag in mode for flag in "wax+") and under(file, {}):
             refuse(file)
         return opener(file, mode, *args, **kwargs)
 
-    builtins.open = io.open = _plain(hub_open)
+    os.access, builtins.open, io.open = _plain(hub_access), _plain(hub_open), _plain(hub_open)
 
 
 # --- install -----------------------------------------------------------------------------------
@@ -482,13 +533,15 @@ def install(system="windows", home=None):
     if _system is not None:
         return
     _system = system
+    for variable in CACHE_VARIABLES if home is not None else ():
+        os.environ.pop(variable, None)
+    if system == "hub":
+        home = os.path.realpath(home or os.path.expanduser("~"))
+        _hub_session(home)
+        _read_only(home)
+        return
     if home is not None:
         os.environ["HOME"] = os.path.realpath(home)  # for this process and those it starts
-        for variable in CACHE_VARIABLES:
-            os.environ.pop(variable, None)
-    if system == "hub":
-        _read_only(home or os.path.expanduser("~"))
-        return
     windows = system == "windows"
     hidden = UNIX_NAMES if windows else MAC_MISSING
     seen = {sys: {"platform": "win32"}, os: {"name": "nt"}} if windows else {sys: {"platform": "darwin"}}

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from day_one import kit_env, student_python
-from foreign_os import UNIX_MODULES, UNIX_NAMES
+from foreign_os import HUB_FOLDERS, HUB_SCRATCH, UNIX_MODULES, UNIX_NAMES
 
 PROBE = r'''
 import json, os, pathlib, select, shutil, signal, socket, sys
@@ -146,12 +146,18 @@ def behaviours(folder):
         "open() encoding": attempt(lambda: open(os.path.join(folder, "text.txt"), "w").encoding),
         "remove a held file": attempt(lambda: os.remove(held)),
         "write in home": attempt(lambda: open(os.path.join(os.path.expanduser("~"), "note.txt"), "w").close()),
+        "home writable to os.access, mkdir of it": [attempt(lambda: os.access(os.path.expanduser("~"), os.W_OK)),
+                                                    attempt(lambda: os.mkdir(os.path.expanduser("~")))],
         "SIGINT in a wait": interrupted_wait(),
         "sys.platform, os.name": [sys.platform, os.name],
         "the user's folders": [os.environ.get(name) for name in ("USERPROFILE", "LOCALAPPDATA", "PROGRAMFILES")],
         "a child given USERPROFILE: its home, LOCALAPPDATA": attempt(lambda: subprocess.run(
             [sys.executable, "-c", "import os; print(os.path.expanduser('~'), os.environ.get('LOCALAPPDATA'))"],
             env={"USERPROFILE": folder}, capture_output=True).stdout.decode().split()),
+        "a child given a HOME: its home, MPLCONFIGDIR": attempt(lambda: subprocess.run(
+            [sys.executable, "-c", "import os; print(os.path.expanduser('~'), os.environ.get('MPLCONFIGDIR'))"],
+            env={"HOME": folder}, capture_output=True).stdout.decode().split()),
+        "the hub's folders": [os.environ.get(name) for name in HUB_FOLDERS],
         "home, and the caches' variables": [os.path.expanduser("~"), os.environ.get("HWLIB_CACHE_DIR"), os.environ.get("XDG_CACHE_HOME")],
         "browser, bwrap and prlimit on PATH": [name for name in ("chromium", "bwrap", "prlimit") if shutil.which(name)],
     }
@@ -175,7 +181,12 @@ EXPECTED = {  # what a system does differently; "same" as on this Linux box
                         "a child given USERPROFILE: its home, LOCALAPPDATA": "['{folder}', 'None']"},
                 "other": {"a child's piped Ł": "1", "SIGINT in a wait": "long", "the user's folders": WINDOWS_FOLDERS,
                           "a child given USERPROFILE: its home, LOCALAPPDATA": "['{folder}', 'None']"}},
-    "hub": {"kit": {"write in home": "OSError: [Errno 30] Read-only file system: '{home}/note.txt'"}, "other": {}},
+    "hub": {side: {"write in home": "OSError: [Errno 30] Read-only file system: '{home}/note.txt'",
+                   "home writable to os.access, mkdir of it": ["False",
+                                                               "FileExistsError: [Errno 17] File exists: '{home}'"],
+                   "a child given a HOME: its home, MPLCONFIGDIR": "['{folder}', 'None']",
+                   "the hub's folders": [f"{{venv}}/{HUB_SCRATCH}/{folder}" for folder in HUB_FOLDERS.values()]}
+            for side in ("kit", "other")},
 }
 ON_PATH = {"macos": [], "windows": [], "hub": [name for name in ("chromium", "bwrap", "prlimit") if shutil.which(name, path="/usr/bin")]}
 
@@ -188,17 +199,22 @@ def test_each_profile_does_what_its_system_does(tmp_path, system):
     refuses the kit the removal of a file held open, and wakes no wait on SIGINT (every caller: Ctrl+C comes from
     another thread), and is "win32" and "nt" to the kit, with a user's session folders (USERPROFILE, LOCALAPPDATA,
     PROGRAMFILES) where a child given an environment of its own has only what it was given; a hub's home is
-    read-only for the kit, and its PATH has Debian's Chromium and prlimit, and a bwrap that fails. Everything else
-    is as on this Linux box. Made to fail once: without ``_interrupt_from_a_thread`` the Windows profile's waits
+    read-only to the kit and other code alike (``os.access`` says so, ``mkdir`` of it is FileExistsError), the folders
+    a hub's administrator must point elsewhere are set, none of them in a child given a HOME of its own, which keeps
+    it, and its PATH has Debian's Chromium and prlimit, and a bwrap that fails. Everything else is as on this Linux
+    box. Made to fail once: without ``_interrupt_from_a_thread`` the Windows profile's waits
     were "short"; with os.name not given the kit read "posix"; without ``_windows_session`` the folders were None;
-    with it setting them in every process, the child's home was the profile's, not its USERPROFILE."""
+    with it setting them in every process, the child's home was the profile's, not its USERPROFILE; on main's hub
+    profile (bdcadf0) other code's write in the home succeeded ("None") and the hub's folders were None; without the
+    ``os.access`` shim the home was writable to it ("True"); with ``mkdir`` of the home refused as a write, it said
+    EROFS, not FileExistsError; with the hub's session in every process, a child given a HOME had the hub's."""
     home = tmp_path / "home"
     home.mkdir()
     python = student_python(tmp_path / "venv", system=system, home=home)
     code = tmp_path / "code"
     (code / "hwtools").mkdir(parents=True)
     for path in (code / "hwtools" / "probe.py", code / "elsewhere.py"):
-        path.write_text(BEHAVIOUR)
+        path.write_text(f"HUB_FOLDERS = {list(HUB_FOLDERS)!r}\n{BEHAVIOUR}")
     folders = {"kit": tmp_path / "kit-files", "other": tmp_path / "other-files"}
     for folder in folders.values():
         folder.mkdir()
@@ -210,8 +226,11 @@ def test_each_profile_does_what_its_system_does(tmp_path, system):
     plain = {"setrlimit RLIMIT_AS 1 GiB": "None", "setrlimit RLIMIT_CPU 600 s": "None", "start method": "fork",
              "a child's piped Ł": "0", "a UTF-8 child's piped Ł": repr("Ł\n".encode()), "open() encoding": "'UTF-8'",
              "remove a held file": "None", "write in home": "None", "SIGINT in a wait": "short",
+             "home writable to os.access, mkdir of it": ["True", f"FileExistsError: [Errno 17] File exists: '{home}'"],
              "sys.platform, os.name": ["linux", "posix"], "the user's folders": [None, None, None],
              "a child given USERPROFILE: its home, LOCALAPPDATA": f"['{home}', 'None']",
+             "a child given a HOME: its home, MPLCONFIGDIR": f"['{home}', 'None']",
+             "the hub's folders": [None] * len(HUB_FOLDERS),
              "home, and the caches' variables": [str(home), None, None], "browser, bwrap and prlimit on PATH": ON_PATH[system]}
 
     def placed(value, side):

@@ -4,11 +4,12 @@ Windows profile: per system one run, module-scoped, with one report.
 
 In a student edition whose every TODO is done, in a folder named as a student's may be ("Łukasz Zoë/hw1"), with a
 student Python of that system (``foreign_os``; macOS: the oldest tested CPython, no ``/proc``, the refused
-``RLIMIT_AS``, "spawn", "darwin" to the kit, a home of its own and no browser where a Mac keeps one; a hub: a read-only
-home, no user namespaces, Debian's Chromium): the student's ``handin/report/answers.tex`` is that of an earlier report
-(other numbers, as before they chose their learning rate); they write words in it and hand in again, report and all
-(``python -m hwtools.handin``: the visible checks, the zip, both notebooks in kernels of that Python, the PDF where
-there is a browser); then they run the edition's own tests (``python -m pytest``).
+``RLIMIT_AS``, "spawn", "darwin" to the kit, a home of its own and no browser where a Mac keeps one; a hub: a home
+read-only to all Python code, with the folders its administrator must then point elsewhere, no user namespaces,
+Debian's Chromium): the student's ``handin/report/answers.tex`` is that of an earlier report (other numbers, as before
+they chose their learning rate); they write words in it and hand in again, report and all (``python -m
+hwtools.handin``: the visible checks, the zip, both notebooks in kernels of that Python, the PDF where there is a
+browser); then they run the edition's own tests (``python -m pytest``).
 
 The two systems' runs are two scheduling units of the README's test command (``conftest.py``), so that the two test
 processes share them.
@@ -58,24 +59,27 @@ def later_hand_in(request, tmp_path_factory):
                           env=kit_env(kit, python), cwd=kit)
     assert done.returncode == 0, f"the hand-in failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
     return {"system": system, "kit": kit, "home": home, "python": python, "earlier": earlier,
-            "said": done.stdout.strip().splitlines()}
+            "said": done.stdout.strip().splitlines(), "warned": done.stderr}
 
 
 @pytest.mark.timeout(HAND_IN_SECONDS + 600)  # the first use of a Python of another version installs its packages
 def test_a_later_hand_in_keeps_the_words_and_prints_what_linux_prints(later_hand_in, tmp_path):
     """The hand-in's visible checks pass and training converges; its zip is the one Linux writes for the same files,
-    byte for byte; every cell nbval compares, the check cells and the sweep among them, prints in the report's kernels
-    what it printed on Linux; the student's words are in the new answers.tex, around them the new report's text and
-    none of the earlier numbers. The Mac finds no Chrome where a Mac keeps one, nor Debian's Chromium: the report
-    comes without its PDF and the hand-in says how to make it; the learning-rate sweep's result is kept in
-    ~/Library/Caches/hwlib. The hub's report prints its PDF, the browser's profile beside the report (removed), not
-    in the read-only home, where the sweep's result is not kept (and nothing is said of it). Made to fail once: with
-    Linux's places among the Mac's browsers, the Mac's report printed handin/alovelac.pdf with Debian's Chromium;
-    with ``reuse.store`` catching only PermissionError, the hub's sweep cell raised "OSError: [Errno 30] Read-only
-    file system: .../home/.cache/hwlib" and the hand-in failed."""
+    byte for byte; every cell nbval compares, the check cells and the sweep among them, prints in the report's
+    kernels what it printed on Linux; the student's words are in the new answers.tex, around them the new report's
+    text and none of the earlier numbers; nothing is printed on stderr (no library's warning). The Mac finds no
+    Chrome where a Mac keeps one, nor Debian's Chromium: the report comes without its PDF and the hand-in says how to
+    make it; the learning-rate sweep's result is kept in ~/Library/Caches/hwlib. The hub's report prints its PDF, the
+    browser's profile beside the report (removed), not in the read-only home, where the sweep's result is not kept
+    (and nothing is said of it). Made to fail once: with Linux's places among the Mac's browsers, the Mac's report
+    printed handin/alovelac.pdf with Debian's Chromium; with ``reuse.store`` catching only PermissionError, the hub's
+    sweep cell raised "OSError: [Errno 30] Read-only file system: .../home/.cache/hwlib" and the hand-in failed; with
+    the hub's environment lacking MPLCONFIGDIR and IPYTHONDIR, the hub's hand-in printed matplotlib's "Matplotlib
+    created a temporary cache directory ..." on stderr."""
     system, kit, home, said = (later_hand_in[key] for key in ("system", "kit", "home", "said"))
     text, out = "\n".join(said), kit / "handin"
     assert "every visible check passes" in text and "training with your LEARNING_RATE converges" in text, text
+    assert not later_hand_in["warned"], later_hand_in["warned"][-3000:]  # nothing on stderr: no library's warning
     assert (out / "alovelac.zip").read_bytes() == handin.zip_bytes(kit, handin.code_files(kit))
     assert_printed_as_on_linux(out / "report", linux_check_texts(kit, tmp_path))
     assert "your words are kept in the new answers.tex" in text, text
