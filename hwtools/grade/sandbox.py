@@ -639,6 +639,8 @@ class ZygoteRun(WorkerProcess):
         return super().receive(deadline)
 
     def _cpu_limit_reached(self):
+        if resource is None:
+            return False  # no CPU-time limit on this system (and no zygote: bubblewrap's only)
         try:
             code = self.zygote.wait(2.0)
         except ZygoteLost:

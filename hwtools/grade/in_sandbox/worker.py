@@ -101,6 +101,8 @@ def zygote(control):
     kills every other process of the sandbox and answers once none is left (``alone``). Non-dumpable,
     so no run can trace it or write its memory; and as its namespace's init it gets no signal from a
     run but SIGCHLD, the one it catches (``signal(7)``, ``pid_namespaces(7)``)."""
+    if sys.platform != "linux":  # a zygote is PID 1 of a Linux sandbox (bubblewrap), nowhere else
+        raise OSError(f"no zygote on {sys.platform}")
     import ctypes  # noqa: PLC0415
     import importlib  # noqa: PLC0415
     import json  # noqa: PLC0415
@@ -156,6 +158,8 @@ def zygote(control):
 def _reap(run, code, wake=None):
     """Reap every child that has exited (a run's orphans come to the sandbox's init, this process):
     (``run``'s exit code, whether no child is left)."""
+    if sys.platform != "linux":  # a zygote is PID 1 of a Linux sandbox (bubblewrap), nowhere else
+        raise OSError(f"no zygote on {sys.platform}")
     try:
         while wake is not None and os.read(wake, 512):
             pass
@@ -176,6 +180,8 @@ def _end(run, code):
     """Kill every process of the sandbox but this one (``kill(-1)`` spares the caller and the namespace's
     init, both this process), again until none is left to reap; (the run's exit code, whether /proc
     then shows this process alone)."""
+    if sys.platform != "linux":  # a zygote is PID 1 of a Linux sandbox (bubblewrap), nowhere else
+        raise OSError(f"no zygote on {sys.platform}")
     import signal  # noqa: PLC0415
 
     give_up = time.monotonic() + END_SECONDS
@@ -196,6 +202,8 @@ def _run(runtime, fds, limits, channel, wakeup):
     grader's three and no other, its signals Python's, its limits set (CPU, address space, open files,
     file size) before any kit code is imported; then the worker's loop on ``/kit``, which holds this
     run's kit alone. Never returns."""
+    if sys.platform != "linux":  # a zygote is PID 1 of a Linux sandbox (bubblewrap), nowhere else
+        raise OSError(f"no zygote on {sys.platform}")
     import ctypes  # noqa: PLC0415
     import signal  # noqa: PLC0415
 
