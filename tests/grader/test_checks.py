@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging, kits
+from hwtools.grade import TODO_BY_ID, Grader, blocks, checks, judging, kits, mistakes
 from hwtools.grade.checks import p1_cartpole, p2_logreg
 from hwtools.grade.checks.verdicts import show, tell_apart
 from hwtools.grade.episodes import Environments, Records
@@ -34,7 +34,8 @@ from hwtools.check_cell import check_lines
 from hwtools import check_cell
 from hwtools.grade.feedback import failure_words, render
 import editions
-from test_grading import full_points, parse_wrong_solution, points
+from test_grading import (assert_first_two_lines_say_what_is_wrong, assert_the_other_todos_run_the_reference_kits,
+                          full_points, parse_wrong_solution, points)
 
 KIT = Path(__file__).resolve().parents[2]
 NATURAL = Path(__file__).resolve().parent / "natural_solutions"
@@ -614,17 +615,6 @@ def test_crlf_copies_are_byte_for_byte_crlf_and_cover_every_graded_todo():
         assert (NATURAL / (path.stem[: -len("_crlf")] + ".py")).read_bytes() == data.replace(b"\r\n", b"\n")
 
 
-@pytest.mark.parametrize("path", [path for path in natural_solutions() if is_crlf(path)], ids=lambda path: path.stem)
-def test_natural_solution_saved_with_crlf_earns_every_point(grader, layout, tmp_path, path):
-    """(tests/grader/test_grading.py grades every natural solution saved as the kit saves files.)"""
-    todo = path.name.split("_")[0]
-    kit = write_kit(layout, tmp_path / "kit", {todo: natural_body(path)}, crlf=is_crlf(path))
-    result = grader.grade(kit)
-    assert points(result) == full_points(), render(result)
-    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
-    assert all(check["passed"] for check in entry["checks"]), render(result)
-
-
 def test_the_whole_reference_kit_saved_with_crlf_earns_every_point(grader, layout, tmp_path):
     result = grader.grade(write_kit(layout, tmp_path / "kit", {}, crlf=True))
     assert points(result) == full_points(), render(result)
@@ -653,8 +643,10 @@ VERDICTS = {
 @pytest.mark.parametrize("case", list(VERDICTS))
 def test_open_cases_get_the_readme_verdict(grader, layout, tmp_path, case):
     todo, body, kept = VERDICTS[case]
-    result = grader.grade(write_kit(layout, tmp_path / "kit", {todo: body}))
-    assert points(result) == full_points() | {todo: kept}, render(result)
+    kit = write_kit(layout, tmp_path / "kit", {todo: body})
+    assert_the_other_todos_run_the_reference_kits(grader, layout, kit, todo)
+    result = grader.grade(kit, todos=[todo])
+    assert points(result) == {todo: kept}, render(result)
 
 
 # --------------------------------------------------------------------------------------------
@@ -753,14 +745,22 @@ def digest(values):
 
 
 @pytest.mark.parametrize("path", natural_solutions(), ids=lambda path: path.stem)
-def test_preview_gives_the_grade_of_natural_solutions_on_the_visible_checks(grader, layout, student_edition, tmp_path,
-                                                                         path):
-    """One solution at a time, the reference elsewhere: the preview runs the student's own code for
-    the other TODOs, so a correct 1.2.1 that returns a list fails the student's own 1.3.2 there
-    (params + learning_rate * list), where the grade runs 1.3.2 with the reference's 1.2.1."""
+def test_natural_solution_earns_every_point_and_the_preview_gives_its_grade(grader, layout, student_edition, tmp_path,
+                                                                           path):
+    """One solution at a time, the reference elsewhere (a CRLF copy in a kit saved whole with CRLF, as
+    Git for Windows checks it out), graded on its own TODO: every other TODO runs on the reference
+    kit's own kits (graded in full once, with LF in test_grading.py and with CRLF here). The preview
+    runs the student's own code for the other TODOs, so a correct 1.2.1 that returns a list fails the
+    student's own 1.3.2 there (params + learning_rate * list), where the grade runs 1.3.2 with the
+    reference's 1.2.1."""
     todo = path.name.split("_")[0]
     kit = write_kit(layout, tmp_path / "kit", {todo: natural_body(path)}, crlf=is_crlf(path))
+    assert_the_other_todos_run_the_reference_kits(grader, layout, kit, todo)
     grade = grader.grade(kit, todos=[todo])
+    assert points(grade) == {t: full for t, full in full_points().items() if t == todo}, render(grade)
+    entry = next(entry for entry in grade["todos"] if entry["id"] == todo)
+    assert all(check["passed"] for check in entry["checks"]), render(grade)
+    assert not any(other.get("mistake") for other in grade["todos"])  # no correct solution is named a mistake
     shown = preview(student_edition, kit, [todo], tmp_path / "preview.json")
     assert_same_visible_verdicts(grade, shown, [todo])
     assert all(visible_verdicts(shown, [todo]).values()), render(shown)
@@ -787,10 +787,37 @@ def test_a_1_2_1_that_returns_a_list_is_named_where_the_students_1_3_2_fails_on_
         assert "probably caused by TODO 1.2.1, which returns a list" in first, check_lines(shown[todo])
 
 
+# A wrong formula keeps at most 30% of its TODO's points (issue 15.4), in every TODO: every wrong
+# solution loses at least 70% of its own TODO and nothing elsewhere, and the preview gives its grade.
 @pytest.mark.parametrize("path", WRONG_FILES, ids=lambda path: path.stem)
-def test_preview_gives_the_grade_of_wrong_solutions_on_the_visible_checks(grader, layout, student_edition, tmp_path,
-                                                                       path):
-    todo, _, bodies = parse_wrong_solution(path)
+def test_wrong_solution_loses_points_only_in_its_todo_and_the_preview_gives_its_grade(grader, layout, student_edition,
+                                                                                      tmp_path, path):
+    """Graded on its own TODO (and 2.1.1, whose check must not blame the derivation for another TODO's
+    mistake): every other TODO runs on the reference kit's own kits (graded in full once)."""
+    todo, mistake, bodies = parse_wrong_solution(path)
     kit = write_kit(layout, tmp_path / "kit", {todo: bodies})
-    grade = grader.grade(kit, todos=[todo])
-    assert_same_visible_verdicts(grade, preview(student_edition, kit, [todo], tmp_path / "preview.json"), [todo])
+    assert_the_other_todos_run_the_reference_kits(grader, layout, kit, todo)
+    result = grader.grade(kit, todos=[todo, "2.1.1"])
+    earned = points(result)
+    assert earned[todo] < TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) kept every point of {todo}"
+    assert earned[todo] <= 0.3 * TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) kept {earned[todo]} of {todo}"
+    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
+    failure = entry["first_failure"]
+    assert failure is not None and failure["check"]
+    assert "NameError" not in failure.get("actual", ""), f"{path.name} no longer fits the kit's code: {failure}"
+    if not failure["hidden"]:
+        assert failure["input"] and failure["expected"] and failure["actual"]
+    # 2.1.1 is graded by hand; the check shown for its grader must not blame the derivation for another TODO's mistake
+    derivation = next(entry for entry in result["todos"] if entry["id"] == "2.1.1")
+    assert todo == "2.1.1" or all(check["passed"] for check in derivation["checks"])
+    # the feedback names the mistake, in the file's own words, first in the first visible failure
+    diagnosis = mistakes.read_wrong_solution(path).diagnosis
+    assert (entry.get("mistake") or {}).get("diagnosis") == diagnosis, (path.name, entry.get("mistake"))
+    assert entry["mistake"]["id"] in {w.id for w in mistakes.read_wrong_solutions(WRONG) if w.diagnosis == diagnosis}
+    named = next(check["visible_failure"] for check in entry["checks"] if check["failed_on"] == "visible")
+    assert list(named)[0] == "mistake" and named["mistake"] == diagnosis
+    if todo != "1.3.3":  # and the one line of Python that rebuilds the visible input (1.3.3's is a setting)
+        assert named["reproduce"].startswith("from hwtools.cases import visible_case; ") and "\n" not in named["reproduce"]
+    assert all(other.get("mistake") is None for other in result["todos"] if other["id"] != todo)
+    assert_first_two_lines_say_what_is_wrong(entry, diagnosis)
+    assert_same_visible_verdicts(result, preview(student_edition, kit, [todo], tmp_path / "preview.json"), [todo])

@@ -48,7 +48,7 @@ HUGE = 200_000_000  # the 200 MB file: zeros, compressed to almost nothing, neve
 AUTO_TODOS = [todo.id for todo in TODOS if todo.auto]
 # Wrong solutions in the class (one or more for each TODO with automatic points) and what each keeps
 # of its own TODO's points; every other TODO keeps all of its own. Every wrong solution is graded
-# alone in test_checks.py and test_grading.py; the class shows a class run gives these the same cells.
+# alone in test_checks.py; the class shows a class run gives these the same cells.
 # The wrong solutions in the class, each with the checks of its TODO whose points it keeps (the points: the TODO table).
 WRONG_KEPT = {"forward_difference": (), "labels_not_one_vs_rest": (), "learning_rate_too_large": (),
               "logreg_gradient_descent": (), "logreg_mean_gradient": (), "one_vs_rest_inverted_labels": (),

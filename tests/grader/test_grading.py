@@ -1,6 +1,8 @@
 """The grader's proof: the instructor's kit earns every point, an untouched student edition none;
-each wrong solution loses points in its own TODO and nowhere else; correct solutions written
-another way earn every point; cheating submissions earn nothing, and the report names what it saw.
+no TODO's kit holds another TODO's code, so a mistake costs points in its own TODO and nowhere else
+(the wrong and natural solutions are graded beside their preview in test_checks.py); correct
+solutions that call another TODO's function earn every point; cheating submissions earn nothing,
+and the report names what it saw.
 
 One ``Grader`` serves the whole module: the reference's answers are computed once, and a kit the
 grader has already run (the same TODO with the same code) is not run again.
@@ -15,8 +17,9 @@ import re
 import secrets
 import shutil
 import subprocess
-import zlib
 import sys
+import tempfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -119,7 +122,8 @@ def test_release_student_edition_earns_nothing_and_keeping_solutions_earns_all(g
 
 
 # --------------------------------------------------------------------------------------------
-# Wrong solutions: points lost in their own TODO, nowhere else
+# Wrong solutions: points lost in their own TODO, nowhere else (each graded, beside its preview, in
+# test_checks.py: on its own TODO, since the others run the reference kit's kits)
 # --------------------------------------------------------------------------------------------
 
 
@@ -131,37 +135,18 @@ def parse_wrong_solution(path):
     return todo, mistake, bodies
 
 
-# A wrong formula keeps at most 30% of its TODO's points (issue 15.4), in every TODO: every wrong
-# solution loses at least 70% of its own TODO and nothing elsewhere.
-@pytest.mark.parametrize("path", sorted(WRONG.glob("*.txt")), ids=lambda path: path.stem)
-def test_wrong_solution_loses_points_only_in_its_todo(grader, layout, tmp_path, path):
-    todo, mistake, bodies = parse_wrong_solution(path)
-    kits.write_submission(layout, tmp_path, {todo: bodies}, others="reference")
-    result = grader.grade(tmp_path)
-    earned = points(result)
-    assert earned[todo] < TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) kept every point of {todo}"
-    assert earned[todo] <= 0.3 * TODO_BY_ID[todo].auto, f"{path.name} ({mistake}) kept {earned[todo]} of {todo}"
-    assert {other: value for other, value in earned.items() if other != todo} == \
-        {other: value for other, value in full_points().items() if other != todo}
-    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
-    failure = entry["first_failure"]
-    assert failure is not None and failure["check"]
-    assert "NameError" not in failure.get("actual", ""), f"{path.name} no longer fits the kit's code: {failure}"
-    if not failure["hidden"]:
-        assert failure["input"] and failure["expected"] and failure["actual"]
-    # 2.1.1 is graded by hand; the check shown for its grader must not blame the derivation for another TODO's mistake
-    derivation = next(entry for entry in result["todos"] if entry["id"] == "2.1.1")
-    assert todo == "2.1.1" or all(check["passed"] for check in derivation["checks"])
-    # the feedback names the mistake, in the file's own words, first in the first visible failure
-    diagnosis = mistakes.read_wrong_solution(path).diagnosis
-    assert (entry.get("mistake") or {}).get("diagnosis") == diagnosis, (path.name, entry.get("mistake"))
-    assert entry["mistake"]["id"] in {w.id for w in mistakes.read_wrong_solutions(WRONG) if w.diagnosis == diagnosis}
-    named = next(check["visible_failure"] for check in entry["checks"] if check["failed_on"] == "visible")
-    assert list(named)[0] == "mistake" and named["mistake"] == diagnosis
-    if todo != "1.3.3":  # and the one line of Python that rebuilds the visible input (1.3.3's is a setting)
-        assert named["reproduce"].startswith("from hwtools.cases import visible_case; ") and "\n" not in named["reproduce"]
-    assert all(other.get("mistake") is None for other in result["todos"] if other["id"] != todo)
-    assert_first_two_lines_say_what_is_wrong(entry, diagnosis)
+def assert_the_other_todos_run_the_reference_kits(grader, layout, kit, todo):
+    """Every TODO of ``kit`` but ``todo`` runs on the very kit it runs on in the reference kit (graded
+    in full: test_instructor_kit_earns_every_point; no TODO's kit holds another TODO's code:
+    test_no_kit_a_student_run_gets_holds_reference_code...), so a test of ``todo``'s code grades
+    ``todo`` alone: what the others would earn is already proven. Read and built, not run."""
+    with tempfile.TemporaryDirectory(prefix="hwgrade-test-reference-") as scratch:
+        kits.write_submission(layout, scratch, others="reference")
+        reference = blocks.read_submission(Path(scratch), layout)
+    read = blocks.read_submission(Path(kit), layout)
+    for other in checks.GRADED_TODOS:
+        if other != todo:
+            assert grader._composite(other, read, layout) == grader._composite(other, reference, layout), other
 
 
 def assert_first_two_lines_say_what_is_wrong(entry, diagnosis):
@@ -181,7 +166,7 @@ def test_a_known_mistake_with_another_constant_is_named_as_that_mistake(grader, 
     todo, mistake, bodies = parse_wrong_solution(path)
     expected = mistakes.read_wrong_solution(WRONG / (re.search(r"^# expect:\s*(\S+)", path.read_text(encoding="utf-8"), re.M)[1] + ".txt"))
     kits.write_submission(layout, tmp_path, {todo: bodies}, others="reference")
-    result = grader.grade(tmp_path)
+    result = grader.grade(tmp_path, todos=[todo])
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
     assert (entry.get("mistake") or {}).get("diagnosis") == expected.diagnosis, (path.name, mistake, entry.get("mistake"))
     assert points(result)[todo] <= 0.3 * TODO_BY_ID[todo].auto, (path.name, points(result)[todo])
@@ -264,28 +249,6 @@ def test_the_class_sees_its_mistakes_beside_the_gradebook(grader, layout, tmp_pa
 # --------------------------------------------------------------------------------------------
 
 
-def natural_solutions():
-    found = []
-    for path in sorted(NATURAL.glob("*.py")):
-        todo = path.name.split("_")[0]
-        if todo in TODO_BY_ID and (TODO_BY_ID[todo].auto or todo == "2.1.1"):
-            found.append(path)
-    return found
-
-
-@pytest.mark.parametrize("path", natural_solutions(), ids=lambda path: path.stem)
-def test_natural_solution_earns_every_point(grader, layout, tmp_path, path):
-    """Graded on its own TODO: every other TODO of the kit is the reference's (graded in full once:
-    test_instructor_kit_earns_every_point), and no TODO's grade runs another's student code."""
-    todo = path.name.split("_")[0]
-    kits.write_submission(layout, tmp_path, {todo: path.read_text(encoding="utf-8")}, others="reference")
-    result = grader.grade(tmp_path, todos=[todo])
-    assert points(result) == {t: full for t, full in full_points().items() if t == todo}, render(result)
-    entry = next(entry for entry in result["todos"] if entry["id"] == todo)
-    assert all(check["passed"] for check in entry["checks"]), render(result)
-    assert not any(other.get("mistake") for other in result["todos"])  # no correct solution is named a mistake
-
-
 # A correct solution of each TODO that calls another TODO's function (each one it could use): the
 # call is answered by the reference server, and the solution earns every point.
 CALLS_ANOTHER_TODO = {
@@ -326,8 +289,9 @@ CALLS_ANOTHER_TODO = {
 @pytest.mark.parametrize("todo, other", list(CALLS_ANOTHER_TODO), ids=lambda value: str(value))
 def test_a_correct_solution_that_calls_another_todos_function_earns_every_point(grader, layout, tmp_path, todo, other):
     kits.write_submission(layout, tmp_path, {todo: CALLS_ANOTHER_TODO[todo, other]}, others="reference")
-    result = grader.grade(tmp_path)
-    assert points(result) == full_points(), render(result)
+    assert_the_other_todos_run_the_reference_kits(grader, layout, tmp_path, todo)
+    result = grader.grade(tmp_path, todos=[todo])
+    assert points(result) == {t: full for t, full in full_points().items() if t == todo}, render(result)
     entry = next(entry for entry in result["todos"] if entry["id"] == todo)
     assert all(check["passed"] for check in entry["checks"]), render(result)
 
@@ -576,21 +540,26 @@ def test_feedback_shows_visible_failures_and_never_a_hidden_input(grader, layout
 
 
 def test_no_kit_a_student_run_gets_holds_reference_code_and_the_server_kit_holds_it_all(grader, layout, tmp_path):
+    """Of an untouched student edition: no kit holds a line of any solution. Of a kit whose every block
+    is the reference's: the kit of a TODO holds no line of another TODO's block, so no TODO's grade runs
+    another TODO's code, the student's or the reference's (the other TODOs' calls go to the server)."""
     reference = layout.reference_bodies()
     solution_lines = {todo: {line.strip() for body in bodies for line in body
                              if len(line.strip()) > 12 and not line.strip().startswith("#")}
                       for todo, bodies in reference.items()}
-    kits.write_submission(layout, tmp_path, others="stub")
-    read = blocks.read_submission(tmp_path, layout)
-    for todo in checks.GRADED_TODOS:
-        files = grader._composite(todo, read, layout)  # what the grader writes for the student's run of todo
-        assert "_hwgrade/runtime.py" in files
-        text = "\n".join(files.values())
-        for other, lines in solution_lines.items():
-            shown = {line for line in lines if line in text}
-            assert not shown, f"the kit of {todo} shows the solution of {other}: {shown}"
-        if "hwlib/settings.py" in files and todo != "1.3.3":  # the learning rate (1.3.3's answer) is in no other kit
-            assert "LEARNING_RATE = None" in files["hwlib/settings.py"]
+    for others in ("stub", "reference"):
+        kits.write_submission(layout, tmp_path / others, others=others)
+        read = blocks.read_submission(tmp_path / others, layout)
+        for todo in checks.GRADED_TODOS:
+            files = grader._composite(todo, read, layout)  # what the grader writes for the student's run of todo
+            assert "_hwgrade/runtime.py" in files
+            text = "\n".join(files.values())
+            own = solution_lines[todo] if others == "reference" else set()  # its own block: the student's code
+            for other, lines in solution_lines.items():
+                shown = {line for line in lines - own if line in text}
+                assert not shown, f"the kit of {todo} ({others} elsewhere) shows the block of {other}: {shown}"
+            if "hwlib/settings.py" in files and todo != "1.3.3":  # the learning rate (1.3.3's answer) is in no other kit
+                assert "LEARNING_RATE = None" in files["hwlib/settings.py"]
     server = "\n".join(grader.pool.files.values())  # the reference server's kit: every solution but 1.3.3's
     for other, lines in solution_lines.items():
         assert (lines <= {line for line in lines if line in server}) == (other != "1.3.3"), other
