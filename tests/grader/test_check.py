@@ -235,12 +235,20 @@ def wrong_edition(tmp_path_factory):
     return kit
 
 
-@pytest.mark.parametrize("todo", ["2.2.1", "1.2.1"])
-def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_inputs(wrong_edition, todo):
+@pytest.fixture(scope="module")
+def instructors_grade(wrong_edition):
+    """The instructor's grade of the wrong edition, every TODO: one grading for the tests that compare with it."""
     from hwtools.grade import Grader
 
+    with Grader(KIT) as grader:
+        return grader.grade(wrong_edition)
+
+
+@pytest.mark.parametrize("todo", ["2.2.1", "1.2.1"])
+def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_inputs(wrong_edition, instructors_grade,
+                                                                                    todo):
     preview = grade_todo(todo, kit=wrong_edition)  # the student edition: its answer key, visible checks only
-    graded = next(e for e in Grader(KIT).grade(wrong_edition, todos=[todo])["todos"] if e["id"] == todo)
+    graded = next(e for e in instructors_grade["todos"] if e["id"] == todo)
 
     def visible(entry):
         return [(c["check"], c["passed"] or c["failed_on"] == "hidden", c.get("visible_failure")) for c in entry["checks"]]
@@ -253,19 +261,17 @@ def test_the_check_gives_the_verdicts_of_the_instructors_grade_on_the_visible_in
     assert mistakes.read_wrong_solution(WRONG / named).diagnosis in " ".join(" ".join(lines).split()), lines
 
 
-def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition, tmp_path):
+def test_the_preview_and_the_grade_agree_on_which_todo_lost_points(wrong_edition, instructors_grade, tmp_path):
     """1.2.1 and 2.2.1 wrong, everything else right: the preview runs the student's own 1.2.1 in
     1.3.2 and 1.3.3 (and 2.2.1 in 2.2.2-2.3.1), so their checks may fail there; they are shown as
     depending on the TODO at fault, keep their points, and the totals agree with the grade."""
-    from hwtools.grade import Grader
-
     out = tmp_path / "preview.json"
     run = subprocess.run([sys.executable, "-m", "hwtools.grade", str(wrong_edition), "--json", str(out)],
                          cwd=wrong_edition, env={**os.environ, "PYTHONPATH": str(wrong_edition), "MPLBACKEND": "Agg"},
                          capture_output=True, text=True, timeout=1200)
     assert run.returncode == 0, run.stderr[-3000:]
     preview = json.loads(out.read_text())
-    graded = Grader(KIT).grade(wrong_edition)
+    graded = instructors_grade
     lost = {result["one_mistake_one_place"]: {e["id"] for e in result["todos"] if e["auto_earned"] < e["auto_possible"]}
             for result in (preview, graded)}
     assert lost[False] == lost[True] == {"1.2.1", "2.2.1"}, lost
