@@ -249,13 +249,21 @@ class Grader:
         # A preview (no hidden input) runs the student's own code in servers beside its runs: it needs no turn.
         pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
         graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
-        budget = self.sandbox.grading(self.budget)  # this grading's wall clock, the turn its runs take, its zygote
+        budget = self._grading(self.budget, layout)  # this grading's wall clock, the turn its runs take, its zygote
+        built = {}  # each TODO's kit, built once per grading (``_kit_files``)
+
+        def kit(todo):
+            if todo not in built:
+                built[todo] = self._kit_files(todo, read, layout)
+            return built[todo]
+
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:
                 if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
-                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
+                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget, kit(todo)),
+                                      graded))
                 entries = dict(zip(graded, executor.map(
-                    lambda todo: self._todo_entry(todo, read, layout, pool, budget, secret), graded)))
+                    lambda todo: self._todo_entry(todo, read, layout, pool, budget, secret, kit(todo)), graded)))
             for todo in selected:
                 result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
                                                                                self._scrub, self._limits, []))
@@ -349,17 +357,27 @@ class Grader:
                 own[todo] = bodies
         return ReferencePool(self.sandbox, kits.composite_files(layout, own, set()), idle=1.0, trusted=False)
 
-    def _todo_entry(self, todo, read, layout, pool, budget, secret=None):
+    def _kit_files(self, todo, read, layout):
+        """``todo``'s kit (``_composite``), or why there is none, or the error building it raised."""
+        try:
+            return self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
+        except Exception as error:  # noqa: BLE001 - _todo_entry gives the verdict
+            return error
+
+    def _todo_entry(self, todo, read, layout, pool, budget, secret=None, files=None):
         """The judged result entry of ``todo``: its run (without hidden inputs memoized per grader as
         the entry it gave, so that a kit already run is not run again and no run's answers are kept
         once judged; hidden inputs are the grading's own, ``secret``'s), the reference's values, the
-        services its judges need. Any failure becomes the entry's verdict."""
+        services its judges need. Any failure becomes the entry's verdict. ``files``: its
+        ``_kit_files``, where they were built already."""
         try:
             notes = judging.seen(todo, read, layout)
         except Exception:  # noqa: BLE001 - what the code reaches for is a note; a block too deep to parse has none
             notes = []
         try:
-            files = self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
+            files = self._kit_files(todo, read, layout) if files is None else files
+            if isinstance(files, Exception):
+                raise files
             if isinstance(files, str):
                 return self._judge(todo, {"student": files, "reference": self._reference_of(todo)}, pool, notes)
             cases = self.case_set(todo, secret)
@@ -401,12 +419,8 @@ class Grader:
     def _visible_run(self, todo, read, layout, pool, budget, files=None):
         """The run of ``todo``'s visible cases alone (memoized per code, as the known mistakes' runs;
         a run its submission's budget stopped is not kept), or None when its code cannot run."""
-        if files is None:
-            try:
-                files = self._composite(todo, read, layout) if layout is not None else "no kit"
-            except Exception:  # noqa: BLE001 - _todo_entry gives the verdict
-                return None
-        if isinstance(files, str):
+        files = self._kit_files(todo, read, layout) if files is None else files
+        if isinstance(files, (str, Exception)):
             return None
         return self._memoized(("visible", kits.files_digest(files), pool.digest if pool else "", todo),
                               lambda: self._run_now(todo, files, _phase(self.cases[todo].visible), [], pool, budget),
@@ -439,15 +453,15 @@ class Grader:
         return judging.judge_todo(todo, run, services, cases, self._expected, self._scrub, self._limits, notes,
                                   self.known_mistakes)
 
+    def _grading(self, seconds, layout):
+        """The ``Budget`` of a grading of ``seconds`` (``Sandbox.grading``), whose zygote, if it has one,
+        compiles the modules of ``layout`` that ``import hwlib`` reaches, every TODO a stub."""
+        template = None if layout is None else kits.composite_files(layout, {}, set(), only=("hwlib/__init__.py",))
+        return self.sandbox.grading(seconds, template)
+
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
         """One run of ``todo``'s kit ``files`` on those cases, in its grading's turn (``budget``)."""
-        with tempfile.TemporaryDirectory(prefix="hwgrade-kit-", ignore_cleanup_errors=True) as scratch:
-            kit = kits.write_files(files, Path(scratch) / "kit")
-            try:
-                return broker.run_cases(self.sandbox.start(kit, budget=budget), todo, visible, hidden, pool)
-            finally:
-                for path in Path(scratch).rglob("*"):
-                    path.chmod(0o700)
+        return broker.run_cases(self.sandbox.start(files, budget=budget), todo, visible, hidden, pool)
 
     def _reference_values(self, todo, cases=None):
         """{case id: the reference's values} for every exact case of ``todo`` (its case set ``cases``,
@@ -527,7 +541,7 @@ class Grader:
             return mistakes.table_entry(solution, mistakes.signature(visible.visible, student[1], entry))
 
         # under bubblewrap the table's runs are forked by a zygote of their own, in turns, each bounded by its own limits
-        table = self.sandbox.grading(float("inf"))
+        table = self._grading(float("inf"), self.layout)
         forked = table if table.zygote is not None else None  # elsewhere side by side, as before
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:

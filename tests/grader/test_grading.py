@@ -480,12 +480,12 @@ def descendants(roots):
 
 
 def worker_processes(settle=3.0):
-    """The processes of this test run running the grader's worker (a student's run or a reference
-    server) that are still alive (zombies excluded), after giving killed ones up to ``settle``
+    """The processes of this test run running the grader's worker (a student's run, a reference
+    server, or a grading's zygote with the runs it forks) that are still alive (zombies excluded), after giving killed ones up to ``settle``
     seconds to go. Only this process's own tree counts (other test runs and graders may share the
     machine; in bubblewrap a process that leaves its session stays in the sandbox's tree)."""
-    alive = live_processes(lambda cmdline: b"worker.py" in cmdline and (b"/grader/" in cmdline or b"hwgrade-" in cmdline),
-                           settle)
+    alive = live_processes(lambda cmdline: (b"worker.py" in cmdline or b"zygote.py" in cmdline) and
+                           (b"/grader/" in cmdline or b"hwgrade-" in cmdline), settle)
     return alive & descendants({os.getpid()})
 
 

@@ -109,12 +109,17 @@ def user(user_python):
     return Sandbox(python=user_python, isolation="user", time_limit=30)
 
 
+# the kit a zygote compiles when it starts: a sigmoid that answers -1, which no test's kit does
+TEMPLATE = {"hwlib/__init__.py": "", "hwlib/logreg.py": "import numpy as np\n\n\ndef sigmoid(z):\n    return "
+            "np.array([-1.0])\n"}
+
+
 class Forked:
     """``isolated`` with every run forked by the zygote of one grading (``Sandbox.grading``), as a
-    grader's runs of student code are under bubblewrap."""
+    grader's runs of student code are under bubblewrap, the zygote's template ``TEMPLATE``."""
 
     def __init__(self, box):
-        self.box, self.grading = box, box.grading(3600)
+        self.box, self.grading = box, box.grading(3600, TEMPLATE)
 
     def start(self, kit, time_limit=None, trusted=False, budget=None):
         return self.box.start(kit, time_limit, trusted, self.grading)
@@ -331,11 +336,12 @@ CHILD_SECONDS = 300
 
 
 def worker_processes(kit, settle=3.0, before=frozenset()):
-    """Live processes running the worker, in the sandbox (/grader/worker.py) or on ``kit`` without
-    one, but those in ``before``; killed ones get up to ``settle`` seconds to go. (Workers this test
-    process started earlier, a reference server of another test's grader, may still be alive: a test
-    judges only the workers its own run started.)"""
-    return live_processes(lambda cmdline: b"/grader/worker.py" in cmdline or
+    """Live processes running the worker, in the sandbox (/grader/worker.py, or a grading's zygote,
+    /grader/zygote.py, and every process it forks) or on ``kit`` without one, but those in
+    ``before``; killed ones get up to ``settle`` seconds to go. (Workers this test process started
+    earlier, a reference server of another test's grader, may still be alive: a test judges only
+    the workers its own run started.)"""
+    return live_processes(lambda cmdline: b"/grader/worker.py" in cmdline or b"/grader/zygote.py" in cmdline or
                           (b"worker.py" in cmdline and str(kit).encode() in cmdline), settle, before)
 
 
@@ -581,7 +587,8 @@ ZYGOTE_RUN = textwrap.dedent("""
 
     values = np.array([{mine}, len(others), descriptors, refused("/proc/1/environ", "rb"), refused("/proc/1/mem", "r+b"),
                        float(int(hashlib.sha256(repr(sorted(os.environ.items())).encode()).hexdigest()[:12], 16)),
-                       float(sorted(os.listdir("/kit")) == ["_hwgrade", "hwlib"]),
+                       float(sorted(os.listdir("/kit")) == ["_hwgrade", "hwlib"] and
+                             os.path.isdir("/kit/hwlib/extra") == {extra}),
                        np.random.random()] + [float(resource.getrlimit(getattr(resource, name))[0]) for name in
                                               ("RLIMIT_CPU", "RLIMIT_AS", "RLIMIT_FSIZE", "RLIMIT_NOFILE")])
     if os.fork() == 0:  # what a run leaves for the next one: a child, its environment, signals to the zygote
@@ -598,8 +605,11 @@ def test_a_zygote_s_runs_begin_alone_and_inherit_nothing_of_each_other(isolated,
     SIGSTOP, SIGKILL): each begins with no process of the sandbox alive but itself and the zygote
     (PID 1), with the descriptors, environment and limits of a run in a sandbox of its own (its CPU
     limit its own, not the zygote's), its own draw of numpy's global generator, its own kit alone in
-    ``/kit``, and cannot read or write the zygote's memory (non-dumpable)."""
-    runs = [make_kit(tmp_path / str(index), ZYGOTE_RUN.format(mine=index)) for index in range(4)]
+    ``/kit`` (the first one's extra folder gone), its own code (not the zygote's compiled template,
+    ``TEMPLATE``), and cannot read or write the zygote's memory (non-dumpable)."""
+    runs = [make_kit(tmp_path / str(index), ZYGOTE_RUN.format(mine=index, extra=index == 1)) for index in range(4)]
+    (runs[1] / "hwlib" / "extra").mkdir()
+    (runs[1] / "hwlib" / "extra" / "left.py").write_text("")
     alone = values(run(runs[0], isolated)).tolist()
     forked = [values(run(kit, zygote)).tolist() for kit in runs[1:]]
     for index, seen in enumerate(forked, 1):
