@@ -40,8 +40,13 @@ from hwtools.grade import blame, blocks, broker, checks, judging, kits, mistakes
 from hwtools.grade.answer_key import ANSWER_KEY
 from hwtools.grade.in_sandbox.channel import fingerprint
 from hwtools.grade.reference import ReferencePool, ServerFailed
-from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Sandbox
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Budget, Sandbox
 from hwtools.todos import TODO_BY_ID, TODOS
+
+try:  # the instructor's kit: bubblewrap's zygotes (the student edition has no sandbox, hwtools/grade/instructor/)
+    from hwtools.grade.instructor.zygote import Zygotes
+except ImportError:
+    Zygotes = None
 
 KIT_ROOT = Path(__file__).resolve().parents[2]
 HIDDEN_CHECKS = Path("instructor") / "hidden_checks" / "__init__.py"
@@ -158,6 +163,7 @@ class Grader:
             except keys.AnswerKeyError as error:
                 raise GradingError(str(error)) from None
         self.sandbox = Sandbox(python or default_python(self.reference), isolation, time_limit, memory_limit)
+        self.zygotes = Zygotes(self.sandbox) if self.sandbox.kind == "bwrap" else None  # between gradings
         self.isolation = isolation
         self._exposed = None  # under the user fallback: the reference's files a pool user can read (checked once)
         self.budget = float(budget) if budget is not None else BUDGET_FACTOR * self.sandbox.time_limit
@@ -186,7 +192,9 @@ class Grader:
         return self._exposed
 
     def close(self):
-        """End the reference servers (a later ``grade`` starts new ones)."""
+        """End the reference servers and idle zygotes (a later ``grade`` starts new ones)."""
+        if self.zygotes is not None:
+            self.zygotes.close()
         if self.pool is not None:
             self.pool.close()
             self.pool = ReferencePool(self.pool.sandbox, self.pool.files)
@@ -454,10 +462,13 @@ class Grader:
                                   self.known_mistakes)
 
     def _grading(self, seconds, layout):
-        """The ``Budget`` of a grading of ``seconds`` (``Sandbox.grading``), whose zygote, if it has one,
-        compiles the modules of ``layout`` that ``import hwlib`` reaches, every TODO a stub."""
+        """The ``Budget`` of a grading of ``seconds``: under bubblewrap with a zygote that forks its runs of
+        student code (``instructor/zygote.py``), which compiles the modules of ``layout`` that ``import
+        hwlib`` reaches, every TODO a stub: a new one, or one an earlier grading left idle on that kit."""
+        if self.zygotes is None:
+            return Budget(seconds)
         template = None if layout is None else kits.composite_files(layout, {}, set(), only=("hwlib/__init__.py",))
-        return self.sandbox.grading(seconds, template)
+        return Budget(seconds, self.zygotes.take(template))
 
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
         """One run of ``todo``'s kit ``files`` on those cases, in its grading's turn (``budget``)."""

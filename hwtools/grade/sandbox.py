@@ -20,7 +20,7 @@ bubblewrap itself starts with an empty environment and reads its options from a 
 so the sandbox's ``/proc/1`` (bubblewrap's init) shows neither the grader's environment nor the
 host paths of the kit and the worker.
 
-**Under bubblewrap a grading's runs of student code are forked by its zygote** (``Sandbox.grading``;
+**Under bubblewrap a grading's runs of student code are forked by its zygote** (``Budget.zygote``;
 ``instructor/zygote.py`` holds it and the argument that each run stays what it was in a sandbox of
 its own): one such sandbox per grading, whose PID 1 imports Python's packages and the grader's
 runtime once and forks each run when it begins. The user fallback keeps one process per run: its
@@ -137,7 +137,7 @@ class Budget:
     """One grading's runs: the wall-clock seconds they may take together (each from its ``begin`` to
     its end; thread-safe; ``remaining()`` can go negative once spent), and its ``turn``, held by each
     of them from its ``begin`` until every process of it is dead. ``zygote``: the ``Zygote`` that forks
-    its runs of student code (``Sandbox.grading``, ``instructor/zygote.py``), ended by ``close``."""
+    its runs of student code (``instructor/zygote.py``), given back by ``close``."""
 
     def __init__(self, seconds, zygote=None):
         self.seconds, self.spent = float(seconds), 0.0
@@ -146,7 +146,7 @@ class Budget:
 
     def close(self):
         if self.zygote is not None:
-            self.zygote.close()
+            self.zygote.release()
 
     def remaining(self):
         with self._lock:
@@ -256,23 +256,11 @@ class Sandbox:
         here; what the messages say is the caller's business. ``trusted``: the kit holds no student
         code (a reference server, ``run_kind``). ``budget``: the grading's ``Budget``: an untrusted
         run begins only when no other run of that grading is alive, and no other begins until every
-        process of it is dead (the module docstring); with a zygote (``grading``) it is forked there."""
+        process of it is dead (the module docstring); with a zygote (``Budget.zygote``) it is forked there."""
         time_limit = float(time_limit or self.time_limit)
         if budget is not None and budget.zygote is not None and not trusted:
             return budget.zygote.start(kit, time_limit, budget)
         return WorkerProcess(self, kit, time_limit, trusted, budget)
-
-    def grading(self, seconds, template=None):
-        """The ``Budget`` of one grading of ``seconds``: under bubblewrap with a ``Zygote`` that forks its
-        runs of student code (started here, in the grading's own thread: bubblewrap's
-        ``--die-with-parent`` follows the thread that starts it), which compiles the kit ``template``
-        ({relative path: text}, every TODO a stub) once for all of them; ``close()`` it at the
-        grading's end."""
-        if self.kind != "bwrap":
-            return Budget(seconds)
-        from hwtools.grade.instructor.zygote import Zygote  # noqa: PLC0415 - bubblewrap's, so the instructor's
-
-        return Budget(seconds, Zygote(self, template))
 
 
 class WorkerProcess:

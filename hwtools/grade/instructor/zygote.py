@@ -1,6 +1,6 @@
 """A grading's zygote (bubblewrap only): one sandbox per grading whose PID 1 forks the grading's runs.
 
-``Sandbox.grading`` makes a ``Zygote``: one bubblewrap sandbox built as a run's (``WorkerProcess``:
+A grading under bubblewrap (``Grader._grading``) takes a ``Zygote`` (``Zygotes.take``): one bubblewrap sandbox built as a run's (``WorkerProcess``:
 the same namespaces, seccomp filter, limits and cgroup) whose PID 1 is the trusted
 ``zygote_init.py``. It starts Python and imports numpy, gymnasium and the grader's runtime once
 (from ``/grader/_hwgrade``, the grader's own copy), compiles (never runs) the grader's template of
@@ -33,6 +33,12 @@ What keeps each run what it was in a sandbox of its own:
 * fail closed: a zygote that is gone (killed, out of memory) or misses a deadline is ``lost``, and
   every later run of its grading fails, in fixed words (``broker.STOPS["lost"]``).
 
+A zygote serves one grading at a time, and once that grading is over (every run of it ended, its
+processes gone), a later grading of the same grader (``Zygotes``), so that a class pays for its Python once per grading thread rather than per submission. A grading finds in it
+what it would find in a new one: no run could change the zygote or anything that outlives the run
+(above), and what is left between any two runs (the counter of process ids, the page cache) is
+worth nothing between two gradings, each of which draws its hidden inputs from a secret of its own
+(docs/grading.md).
 """
 
 from __future__ import annotations
@@ -48,15 +54,66 @@ from pathlib import Path
 
 from hwtools.grade import kits
 from hwtools.grade.processes import Pipes
+from hwtools.grade.reference import spawn
 from hwtools.grade.sandbox import GONE_SECONDS, MAX_FILE_BYTES, WorkerProcess, _tail
 
 ZYGOTE_CPU = 3600.0  # CPU seconds of a grading's zygote itself (each run it forks sets its own limit)
 SETUP_SECONDS = 120.0  # for a zygote to import what every run needs
 LOST_WORDS = "the grading's sandbox was lost"
+IDLE_SECONDS = 10.0  # an idle zygote ends after this long
 
 
 class ZygoteLost(ConnectionError):
     """The grading's zygote is gone, or broke its protocol: no later run of the grading runs."""
+
+
+class Zygotes:
+    """The zygotes of one ``Sandbox`` between its gradings: ``take`` gives a grading one that no other
+    grading holds (an idle one made on the same template, else a new one, started by the spawner's
+    thread, as bubblewrap's ``--die-with-parent`` needs: ``reference.spawn``); ``Zygote.release``
+    gives it back. Idle ones end after ``IDLE_SECONDS``, and all of them with ``close``."""
+
+    def __init__(self, sandbox):
+        self.sandbox, self._idle, self._lock, self._timer = sandbox, [], threading.Lock(), None
+
+    def take(self, template=None):
+        """A zygote on the kit ``template`` ({relative path: text}) for one grading (``Budget.zygote``)."""
+        key = kits.files_digest(template or {})
+        while True:
+            with self._lock:
+                zygote = next((zygote for zygote in self._idle if zygote.key == key), None)
+                if zygote is None:
+                    return spawn(lambda: Zygote(self.sandbox, template, self, key))
+                self._idle.remove(zygote)
+            if zygote.process.process.poll() is None:  # its sandbox is still there
+                return zygote
+            zygote.close()
+
+    def put(self, zygote):
+        zygote.idle_since = time.monotonic()
+        with self._lock:
+            self._idle.append(zygote)
+            if self._timer is None:
+                self._timer = threading.Timer(IDLE_SECONDS, self._reap)
+                self._timer.daemon = True
+                self._timer.start()
+
+    def _reap(self, everyone=False):
+        now = time.monotonic()
+        with self._lock:
+            self._timer = None
+            stale = [zygote for zygote in self._idle if everyone or now - zygote.idle_since >= IDLE_SECONDS]
+            self._idle = [zygote for zygote in self._idle if zygote not in stale]
+            if self._idle:
+                self._timer = threading.Timer(IDLE_SECONDS, self._reap)
+                self._timer.daemon = True
+                self._timer.start()
+        for zygote in stale:
+            zygote.close()
+
+    def close(self):
+        """End every idle zygote (a later grading starts new ones)."""
+        self._reap(everyone=True)
 
 
 class Zygote:
@@ -69,8 +126,9 @@ class Zygote:
     outlived its end, is killed with its whole sandbox: ``lost``, and every later run of the grading
     fails (fail closed)."""
 
-    def __init__(self, sandbox, template=None):
+    def __init__(self, sandbox, template=None, pool=None, key=None):
         self.sandbox, self.lost, self._ready, self._closed = sandbox, None, False, False
+        self._pool, self.key, self._running = pool, key, False
         self._lock = threading.Lock()
         self._folder = tempfile.TemporaryDirectory(prefix="hwgrade-zygote-", ignore_cleanup_errors=True)
         self.kits = Path(self._folder.name) / "kit"
@@ -137,6 +195,7 @@ class Zygote:
         with self._lock:
             try:
                 if self.lost is None:
+                    self._running = True  # from here until its end says it is gone
                     kits.write_files(files, self.kits, self._held)
                     self._held = dict(files)
             except OSError as error:
@@ -151,9 +210,10 @@ class Zygote:
         """End the run: every process of it killed and gone (the zygote alone in its sandbox, or the
         sandbox gone); its exit code."""
         reply = self.ask({"op": "end"}, "ended")
-        if reply.get("alone") is not True:
-            with self._lock:
+        with self._lock:
+            if reply.get("alone") is not True:
                 self._lose("a run's process outlived its end")
+            self._running = False
         return reply.get("code")
 
     def _lose(self, why):
@@ -163,6 +223,13 @@ class Zygote:
             self._closed = True
             self.channel.close()  # the zygote's sign to exit
             self.process.finish(graceful=False)
+
+    def release(self):
+        """The grading is over: back to its pool for a later grading if every run of it has ended
+        (alone, never lost), else ended."""
+        with self._lock:
+            idle = self._pool is not None and self.lost is None and not self._running
+        self._pool.put(self) if idle else self.close()
 
     def close(self):
         with self._lock:
