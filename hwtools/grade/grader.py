@@ -164,6 +164,8 @@ class Grader:
                 raise GradingError(str(error)) from None
         self.sandbox = Sandbox(python or default_python(self.reference), isolation, time_limit, memory_limit)
         self.zygotes = Zygotes(self.sandbox) if self.sandbox.kind == "bwrap" else None  # between gradings
+        if self.zygotes is not None:  # idle ones end with the grader, at exit at the latest (their groups removed)
+            weakref.finalize(self, Zygotes.close, self.zygotes)
         self.isolation = isolation
         self._exposed = None  # under the user fallback: the reference's files a pool user can read (checked once)
         self.budget = float(budget) if budget is not None else BUDGET_FACTOR * self.sandbox.time_limit

@@ -703,6 +703,24 @@ def test_command_line_help_needs_no_homework_packages():
     assert "--reference" in result.stdout and "--json" in result.stdout and "--todo" in result.stdout
 
 
+def test_a_grader_s_idle_zygote_ends_with_it():
+    """A grading's zygote waits idle for the grader's next grading; it ends with the grader (at the
+    latest when the grading process exits), its processes and control groups gone, not left to
+    bubblewrap's --die-with-parent, which removes no control group."""
+    import gc  # noqa: PLC0415
+
+    grader = Grader(KIT, isolation="auto", time_limit=TIME_LIMIT)
+    if grader.zygotes is None:
+        pytest.skip(f"no bubblewrap here: {grader.sandbox.how}")
+    budget = grader._grading(grader.budget, grader.layout)
+    budget.close()  # the grading is over: its zygote waits idle
+    zygote = budget.zygote
+    del grader, budget
+    gc.collect()
+    assert zygote.process.process.poll() is not None, "an idle zygote outlived its grader"
+    assert zygote.group is None or not any(folder.exists() for folder in zygote.group.folders)
+
+
 def test_command_line_grades_one_todo_to_json(tmp_path):
     out = tmp_path / "result.json"
     result = subprocess.run([sys.executable, "-m", "hwtools.grade", str(KIT), "--todo", "2.2.2", "--json", str(out),
