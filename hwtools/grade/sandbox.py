@@ -22,8 +22,8 @@ host paths of the kit and the worker.
 
 **Under bubblewrap a grading's runs of student code are forked by its zygote** (``Budget.zygote``;
 ``instructor/zygote.py`` holds it and the argument that each run stays what it was in a sandbox of
-its own): one such sandbox per grading, whose PID 1 imports Python's packages and the grader's
-runtime once and forks each run when it begins. The user fallback keeps one process per run: its
+its own): one such sandbox per grading at a time (it serves its grader's gradings in turn), whose
+PID 1 imports Python's packages and the grader's runtime once and forks each run when it begins. The user fallback keeps one process per run: its
 runs are told apart by a user of their own, which a zygote would have to share or switch to (it
 cannot without privileges). So do the trusted reference servers, which live across gradings.
 
@@ -92,7 +92,7 @@ from pathlib import Path
 
 from hwtools.grade.in_sandbox.channel import ChannelTimeout
 from hwtools.grade.in_sandbox.worker import set_limit
-from hwtools.grade.kits import WORKER, remove_tree, worker_env, write_files
+from hwtools.grade.kits import WORKER, worker_env, write_files
 from hwtools.grade.processes import Pipes, kill_tree
 
 try:  # macOS and Linux; Windows has none (its runs have no CPU or memory limit)
