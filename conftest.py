@@ -30,7 +30,11 @@ def pytest_configure(config):
     if hasattr(config.option, "loadscopereorder"):
         config.option.loadscopereorder = False
     # The learning-rate sweep's stored results (hwlib/machinery/reuse.py) go to a folder of this test run's
-    # own, set before any kernel or server starts: no test reads what another run stored.
+    # own, set before any kernel or server starts: no test reads what another run stored. The run's processes
+    # (xdist's workers, which inherit it) share it, so that p1's sweep trains once per run where the same code
+    # runs it again (nbval's p1, the JupyterLab tests' Run All): whichever comes first trains, the others read it.
+    if hasattr(config, "workerinput") and os.environ.get("HWLIB_CACHE_DIR"):
+        return  # the controller made it and removes it
     config.hwlib_cache_dir = os.environ["HWLIB_CACHE_DIR"] = tempfile.mkdtemp(prefix="hwlib-cache-")
 
 

@@ -90,6 +90,7 @@ def bench(layout, workdir, count, jobs, isolation="auto", python=None, cpu=None)
                                    grader=grader, jobs=jobs)
     seconds, used = time.perf_counter() - started, cpu() - used if cpu else None
     assert report.graded_now == count and all(s.auto_total == AUTO_POINTS for s in report.students)
+    grader.close()  # its reference servers and idle zygotes: none left in the CPU group at the end
     return grader.sandbox, first_seconds, seconds, used
 
 

@@ -40,8 +40,13 @@ from hwtools.grade import blame, blocks, broker, checks, judging, kits, mistakes
 from hwtools.grade.answer_key import ANSWER_KEY
 from hwtools.grade.in_sandbox.channel import fingerprint
 from hwtools.grade.reference import ReferencePool, ServerFailed
-from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Sandbox
+from hwtools.grade.sandbox import DEFAULT_MEMORY_LIMIT, DEFAULT_TIME_LIMIT, Budget, Sandbox
 from hwtools.todos import TODO_BY_ID, TODOS
+
+try:  # the instructor's kit: bubblewrap's zygotes (the student edition has no sandbox, hwtools/grade/instructor/)
+    from hwtools.grade.instructor.zygote import Zygotes
+except ImportError:
+    Zygotes = None
 
 KIT_ROOT = Path(__file__).resolve().parents[2]
 HIDDEN_CHECKS = Path("instructor") / "hidden_checks" / "__init__.py"
@@ -158,6 +163,9 @@ class Grader:
             except keys.AnswerKeyError as error:
                 raise GradingError(str(error)) from None
         self.sandbox = Sandbox(python or default_python(self.reference), isolation, time_limit, memory_limit)
+        self.zygotes = Zygotes(self.sandbox) if self.sandbox.kind == "bwrap" else None  # between gradings
+        if self.zygotes is not None:  # idle ones end with the grader, at exit at the latest (their groups removed)
+            weakref.finalize(self, Zygotes.close, self.zygotes)
         self.isolation = isolation
         self._exposed = None  # under the user fallback: the reference's files a pool user can read (checked once)
         self.budget = float(budget) if budget is not None else BUDGET_FACTOR * self.sandbox.time_limit
@@ -186,7 +194,9 @@ class Grader:
         return self._exposed
 
     def close(self):
-        """End the reference servers (a later ``grade`` starts new ones)."""
+        """End the reference servers and idle zygotes (a later ``grade`` starts new ones)."""
+        if self.zygotes is not None:
+            self.zygotes.close()
         if self.pool is not None:
             self.pool.close()
             self.pool = ReferencePool(self.pool.sandbox, self.pool.files)
@@ -249,13 +259,21 @@ class Grader:
         # A preview (no hidden input) runs the student's own code in servers beside its runs: it needs no turn.
         pool = self.pool if self.reference is not None else self._preview_pool(read, layout)
         graded = [todo for todo in selected if todo in checks.GRADED_TODOS]
-        budget = self.sandbox.grading(self.budget)  # this grading's wall clock, the turn its runs take, its zygote
+        budget = self._grading(self.budget, layout)  # this grading's wall clock, the turn its runs take, its zygote
+        built = {}  # each TODO's kit, built once per grading (``_kit_files``)
+
+        def kit(todo):
+            if todo not in built:
+                built[todo] = self._kit_files(todo, read, layout)
+            return built[todo]
+
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:
                 if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
-                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget), graded))
+                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget, kit(todo)),
+                                      graded))
                 entries = dict(zip(graded, executor.map(
-                    lambda todo: self._todo_entry(todo, read, layout, pool, budget, secret), graded)))
+                    lambda todo: self._todo_entry(todo, read, layout, pool, budget, secret, kit(todo)), graded)))
             for todo in selected:
                 result["todos"].append(entries.get(todo) or judging.judge_todo(todo, None, {}, None, self._expected,
                                                                                self._scrub, self._limits, []))
@@ -349,17 +367,27 @@ class Grader:
                 own[todo] = bodies
         return ReferencePool(self.sandbox, kits.composite_files(layout, own, set()), idle=1.0, trusted=False)
 
-    def _todo_entry(self, todo, read, layout, pool, budget, secret=None):
+    def _kit_files(self, todo, read, layout):
+        """``todo``'s kit (``_composite``), or why there is none, or the error building it raised."""
+        try:
+            return self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
+        except Exception as error:  # noqa: BLE001 - _todo_entry gives the verdict
+            return error
+
+    def _todo_entry(self, todo, read, layout, pool, budget, secret=None, files=None):
         """The judged result entry of ``todo``: its run (without hidden inputs memoized per grader as
         the entry it gave, so that a kit already run is not run again and no run's answers are kept
         once judged; hidden inputs are the grading's own, ``secret``'s), the reference's values, the
-        services its judges need. Any failure becomes the entry's verdict."""
+        services its judges need. Any failure becomes the entry's verdict. ``files``: its
+        ``_kit_files``, where they were built already."""
         try:
             notes = judging.seen(todo, read, layout)
         except Exception:  # noqa: BLE001 - what the code reaches for is a note; a block too deep to parse has none
             notes = []
         try:
-            files = self._composite(todo, read, layout) if layout is not None else read.problems.get(todo, "no kit")
+            files = self._kit_files(todo, read, layout) if files is None else files
+            if isinstance(files, Exception):
+                raise files
             if isinstance(files, str):
                 return self._judge(todo, {"student": files, "reference": self._reference_of(todo)}, pool, notes)
             cases = self.case_set(todo, secret)
@@ -401,12 +429,8 @@ class Grader:
     def _visible_run(self, todo, read, layout, pool, budget, files=None):
         """The run of ``todo``'s visible cases alone (memoized per code, as the known mistakes' runs;
         a run its submission's budget stopped is not kept), or None when its code cannot run."""
-        if files is None:
-            try:
-                files = self._composite(todo, read, layout) if layout is not None else "no kit"
-            except Exception:  # noqa: BLE001 - _todo_entry gives the verdict
-                return None
-        if isinstance(files, str):
+        files = self._kit_files(todo, read, layout) if files is None else files
+        if isinstance(files, (str, Exception)):
             return None
         return self._memoized(("visible", kits.files_digest(files), pool.digest if pool else "", todo),
                               lambda: self._run_now(todo, files, _phase(self.cases[todo].visible), [], pool, budget),
@@ -439,15 +463,18 @@ class Grader:
         return judging.judge_todo(todo, run, services, cases, self._expected, self._scrub, self._limits, notes,
                                   self.known_mistakes)
 
+    def _grading(self, seconds, layout):
+        """The ``Budget`` of a grading of ``seconds``: under bubblewrap with a zygote that forks its runs of
+        student code (``instructor/zygote.py``), which compiles the modules of ``layout`` that ``import
+        hwlib`` reaches, every TODO a stub: a new one, or one an earlier grading left idle on that kit."""
+        if self.zygotes is None:
+            return Budget(seconds)
+        template = None if layout is None else kits.composite_files(layout, {}, set(), only=("hwlib/__init__.py",))
+        return Budget(seconds, self.zygotes.take(template))
+
     def _run_now(self, todo, files, visible, hidden, pool, budget=None):
         """One run of ``todo``'s kit ``files`` on those cases, in its grading's turn (``budget``)."""
-        with tempfile.TemporaryDirectory(prefix="hwgrade-kit-", ignore_cleanup_errors=True) as scratch:
-            kit = kits.write_files(files, Path(scratch) / "kit")
-            try:
-                return broker.run_cases(self.sandbox.start(kit, budget=budget), todo, visible, hidden, pool)
-            finally:
-                for path in Path(scratch).rglob("*"):
-                    path.chmod(0o700)
+        return broker.run_cases(self.sandbox.start(files, budget=budget), todo, visible, hidden, pool)
 
     def _reference_values(self, todo, cases=None):
         """{case id: the reference's values} for every exact case of ``todo`` (its case set ``cases``,
@@ -527,7 +554,7 @@ class Grader:
             return mistakes.table_entry(solution, mistakes.signature(visible.visible, student[1], entry))
 
         # under bubblewrap the table's runs are forked by a zygote of their own, in turns, each bounded by its own limits
-        table = self.sandbox.grading(float("inf"))
+        table = self._grading(float("inf"), self.layout)
         forked = table if table.zygote is not None else None  # elsewhere side by side, as before
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:

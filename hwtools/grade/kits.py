@@ -183,15 +183,39 @@ def files_digest(files):
     return digest.hexdigest()
 
 
-def write_files(files, out_dir):
-    """Write {relative path: text} under ``out_dir`` (read-only files)."""
-    out_dir = Path(out_dir)
+def write_files(files, out_dir, held=None):
+    """Make the folder ``out_dir`` hold the kit ``files`` ({relative path: text}) alone: read-only files in
+    folders anyone may enter. ``held``: the files an earlier call put there, of which only those that
+    differ are written again, and those ``files`` lacks removed with the folders they leave empty."""
+    out_dir, held = Path(out_dir), held or {}
+    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir.chmod(0o755)
+    folders, old = _folders(files), _folders(held)
+    for relative in held.keys() - files.keys():
+        (out_dir / relative).unlink()
+    for folder in sorted(old - folders, key=lambda folder: len(folder.parts), reverse=True):
+        (out_dir / folder).rmdir()
+    for folder in sorted(folders - old, key=lambda folder: len(folder.parts)):
+        (out_dir / folder).mkdir(exist_ok=True)
+        (out_dir / folder).chmod(0o755)
     for relative, text in sorted(files.items()):
-        target = out_dir / relative
-        target.parent.mkdir(parents=True, exist_ok=True)
-        target.write_text(text, encoding="utf-8")
-        target.chmod(0o444)
+        if held.get(relative) != text:
+            target = out_dir / relative
+            target.unlink(missing_ok=True)
+            target.write_text(text, encoding="utf-8")
+            target.chmod(0o444)
     return out_dir
+
+
+def _folders(files):
+    return {folder for relative in files for folder in PurePosixPath(relative).parents if folder.parts}
+
+
+def read_files(folder):
+    """{relative path: text} of every file under ``folder`` (a kit written by hand: the sandbox's tests)."""
+    folder = Path(folder)
+    return {path.relative_to(folder).as_posix(): path.read_text(encoding="utf-8") for path in sorted(folder.rglob("*"))
+            if path.is_file()}
 
 
 def remove_tree(path):

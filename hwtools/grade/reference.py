@@ -54,9 +54,10 @@ class ServerTimeout(ServerFailed):
 
 
 class _Spawner:
-    """One long-lived thread that starts every server process. bubblewrap's --die-with-parent ends
-    a sandbox when the *thread* that started it ends, and runs borrow servers from short-lived
-    threads (a ThreadPoolExecutor's): so none of those may start one."""
+    """One long-lived thread that starts every server process (and every grading's zygote, which
+    serves later gradings too: ``spawn``). bubblewrap's --die-with-parent ends a sandbox when the
+    *thread* that started it ends, and runs borrow servers from short-lived threads (a
+    ThreadPoolExecutor's): so none of those may start one."""
 
     def __init__(self):
         self._jobs = queue.SimpleQueue()
@@ -84,7 +85,8 @@ _SPAWNER = []
 _SPAWNER_LOCK = threading.Lock()
 
 
-def _spawn(job):
+def spawn(job):
+    """``job()`` (which starts a sandbox that outlives the thread asking for it) in the spawner's thread."""
     with _SPAWNER_LOCK:
         if not _SPAWNER:
             _SPAWNER.append(_Spawner())
@@ -97,7 +99,7 @@ class ReferenceServer:
     def __init__(self, sandbox, kit_dir, lifetime=LIFETIME, trusted=True):
         # no grading's turn: a server answers the run that holds it (the preview's server, on the
         # student's own kit, holds no secret: no reference, no hidden input)
-        self.process = _spawn(lambda: sandbox.start(kit_dir, lifetime, trusted=trusted))
+        self.process = spawn(lambda: sandbox.start(kit_dir, lifetime, trusted=trusted))
         self.sent, self.broken, self.closed, self.last_used = 0, False, False, time.monotonic()
         try:
             number = self.send({"op": "setup", "mode": "server"})

@@ -20,40 +20,12 @@ bubblewrap itself starts with an empty environment and reads its options from a 
 so the sandbox's ``/proc/1`` (bubblewrap's init) shows neither the grader's environment nor the
 host paths of the kit and the worker.
 
-**Under bubblewrap a grading's runs of student code are forked by its zygote** (``Sandbox.grading``,
-``Zygote``, ``ZygoteRun``; ``worker.py --zygote``): one such sandbox per grading (the same options,
-filter, limits and cgroup), whose PID 1 is the trusted worker. It starts Python and imports numpy,
-gymnasium and the grader's runtime once (from ``/grader/_hwgrade``, the grader's own copy: no kit
-code), then forks each run when it begins, so a run costs a fork, not a Python (the grading
-benchmark's rows of 2026-12-07 in ``benchmarks/RESULTS.md``). What keeps each run what it was in a
-sandbox of its own:
-
-* a run begins alone: at the end of each run the zygote kills every other process of its sandbox
-  (``kill(-1, SIGKILL)``: as the namespace's init it is spared, and every process there is its
-  descendant), reaps them until it has no child, and says so only when ``/proc`` then lists itself
-  alone; a reply that does not come by its deadline, or does not say alone, kills the whole sandbox;
-* it inherits nothing of the runs before it: it makes no file, socket, System V or POSIX IPC object
-  or memory file (the seccomp filter refuses them all in the shared sandbox, so its ``/tmp`` and
-  ``/dev/shm`` stay empty), holds the grader's three descriptors and no other (it closes every
-  other before anything else), the zygote's environment (set by bubblewrap, never changed by a run),
-  and sees its own kit alone in ``/kit`` (a host folder bound once: the run's kit is copied in at
-  its fork and removed once every process of it is dead). The zygote is non-dumpable
-  (``PR_SET_DUMPABLE`` 0), so no run can trace it, read its ``/proc`` files or write its memory;
-  and as its namespace's init it receives no signal from a run but the SIGCHLD it catches
-  (``pid_namespaces(7)``). Left over: the namespace's counter of process ids goes on from one run to
-  the next, as the page cache does between any two runs (docs/grading.md says why neither carries
-  anything of use);
-* each forked run sets its own limits (CPU time, address space, open files, file size) and is the
-  first process the kernel kills when the sandbox's memory runs out (``oom_score_adj`` 1000), before
-  any code of its kit is imported, under the seccomp filter the whole sandbox runs under;
-* its pipes, deadlines, wall-clock backstop, budget and turn are a run's (``WorkerProcess``); the
-  cgroup bounds the sandbox (the zygote and the one run alive beside it);
-* fail closed: a zygote that is gone (killed, out of memory) or misses a deadline is ``lost``, and
-  every later run of its grading fails, in fixed words (``broker.STOPS["lost"]``).
-
-The user fallback keeps one process per run: its runs are told apart by a user of their own, which
-a zygote would have to share or switch to (it cannot without privileges). So do the trusted
-reference servers, which live across gradings.
+**Under bubblewrap a grading's runs of student code are forked by its zygote** (``Budget.zygote``;
+``instructor/zygote.py`` holds it and the argument that each run stays what it was in a sandbox of
+its own): one such sandbox per grading at a time (it serves its grader's gradings in turn), whose
+PID 1 imports Python's packages and the grader's runtime once and forks each run when it begins. The user fallback keeps one process per run: its
+runs are told apart by a user of their own, which a zygote would have to share or switch to (it
+cannot without privileges). So do the trusted reference servers, which live across gradings.
 
 ``user`` (where bubblewrap cannot create namespaces, as in Docker's default seccomp profile, e.g.
 Gradescope): an unprivileged user of its own per run, the same seccomp filter (no socket, no file
@@ -107,11 +79,9 @@ lines do), so that nothing a worker sends can take the trusted side down.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import tempfile
@@ -122,7 +92,7 @@ from pathlib import Path
 
 from hwtools.grade.in_sandbox.channel import ChannelTimeout
 from hwtools.grade.in_sandbox.worker import set_limit
-from hwtools.grade.kits import WORKER, remove_tree, worker_env
+from hwtools.grade.kits import WORKER, worker_env, write_files
 from hwtools.grade.processes import Pipes, kill_tree
 
 try:  # macOS and Linux; Windows has none (its runs have no CPU or memory limit)
@@ -149,9 +119,6 @@ TOKEN_VARIABLE = "HWGRADE_SANDBOX"
 KINDS = ("auto", "bwrap", "user", "none")
 GONE_SECONDS = 30.0  # to wait for a killed sandbox's last process
 BUDGET_WORDS = "the submission's time budget was used up"
-ZYGOTE_CPU = 3600.0  # CPU seconds of a grading's zygote itself (each run it forks sets its own limit)
-SETUP_SECONDS = 120.0  # for a zygote to import what every run needs
-LOST_WORDS = "the grading's sandbox was lost"
 
 
 _SURVIVORS = []  # set when a run's processes could not be killed: no run of student code begins after it
@@ -170,7 +137,7 @@ class Budget:
     """One grading's runs: the wall-clock seconds they may take together (each from its ``begin`` to
     its end; thread-safe; ``remaining()`` can go negative once spent), and its ``turn``, held by each
     of them from its ``begin`` until every process of it is dead. ``zygote``: the ``Zygote`` that forks
-    its runs of student code (``Sandbox.grading``), ended by ``close``."""
+    its runs of student code (``instructor/zygote.py``), given back by ``close``."""
 
     def __init__(self, seconds, zygote=None):
         self.seconds, self.spent = float(seconds), 0.0
@@ -179,7 +146,7 @@ class Budget:
 
     def close(self):
         if self.zygote is not None:
-            self.zygote.close()
+            self.zygote.release()
 
     def remaining(self):
         with self._lock:
@@ -268,37 +235,32 @@ class Sandbox:
         """The command line of one run (``run_folder``: the user fallback's private folder; ``kind``:
         ``run_kind``'s, default ``self.kind``; ``userns``: bubblewrap's user namespace, where the
         grader makes it; ``program``: the descriptor bubblewrap reads the seccomp filter from;
-        ``zygote``: the descriptor of a zygote's socket, for a grading's zygote instead of one run) and
-        the options bubblewrap reads from a pipe (None for the other kinds)."""
+        ``zygote``: the descriptor of a zygote's socket, for a grading's zygote, ``/grader/zygote.py``,
+        instead of one run) and the options bubblewrap reads from a pipe (None for the other kinds)."""
         kind = kind or self.kind
         options, limits = self.limits(time_limit, kind)
         prlimit = [shutil.which("prlimit"), *options, "--"] if shutil.which("prlimit") else []
         if kind == "bwrap":
-            arguments = ["/kit"] + limits if zygote is None else ["--zygote", str(zygote)]
+            arguments = ["/grader/worker.py", "/kit"] + limits if zygote is None else ["/grader/zygote.py", str(zygote)]
             return (prlimit + [shutil.which("bwrap"), "--args", "{fd}", "--info-fd", "{info}", "--",
-                               os.path.abspath(self.python), "-B", "-s", "/grader/worker.py"] + arguments,
+                               os.path.abspath(self.python), "-B", "-s"] + arguments,
                     bwrap_options(self.python, kit_dir, program, userns, zygote is not None))
         if kind == "user":
             return prlimit + run_folder.command(self.python) + limits, None
         return prlimit + [self.python, "-B", "-s", str(WORKER), str(kit_dir)] + limits, None
 
-    def start(self, kit_dir, time_limit=None, trusted=False, budget=None):
-        """Start one worker on ``kit_dir``: a ``WorkerProcess`` to talk to (``send``/``receive``) and
+    def start(self, kit, time_limit=None, trusted=False, budget=None):
+        """Start one worker on ``kit`` (a folder, or the kit's files {relative path: text}, written once
+        where the run reads them): a ``WorkerProcess`` to talk to (``send``/``receive``) and
         to end (``finish``, which also ends every process it started). Launching and limits live
         here; what the messages say is the caller's business. ``trusted``: the kit holds no student
         code (a reference server, ``run_kind``). ``budget``: the grading's ``Budget``: an untrusted
         run begins only when no other run of that grading is alive, and no other begins until every
-        process of it is dead (the module docstring); with a zygote (``grading``) it is forked there."""
+        process of it is dead (the module docstring); with a zygote (``Budget.zygote``) it is forked there."""
         time_limit = float(time_limit or self.time_limit)
         if budget is not None and budget.zygote is not None and not trusted:
-            return ZygoteRun(self, kit_dir, time_limit, budget)
-        return WorkerProcess(self, kit_dir, time_limit, trusted, budget)
-
-    def grading(self, seconds):
-        """The ``Budget`` of one grading of ``seconds``: under bubblewrap with a ``Zygote`` that forks its
-        runs of student code (started here, in the grading's own thread: bubblewrap's
-        ``--die-with-parent`` follows the thread that starts it); ``close()`` it at the grading's end."""
-        return Budget(seconds, Zygote(self) if self.kind == "bwrap" else None)
+            return budget.zygote.start(kit, time_limit, budget)
+        return WorkerProcess(self, kit, time_limit, trusted, budget)
 
 
 class WorkerProcess:
@@ -307,18 +269,15 @@ class WorkerProcess:
     seconds, the wall-clock backstop, counted from ``begin``) ends it at the latest."""
 
     def __init__(self, sandbox, kit_dir, time_limit, trusted=False, budget=None, zygote=None):
-        self.sandbox, self.time_limit, self.kind = sandbox, time_limit, sandbox.run_kind(trusted)
-        self.budget, self.trusted = budget, trusted
-        self.started = time.monotonic()
-        self.deadline = self.started + wall_limit(time_limit)
-        self.begun = self._holding = self._budget_bound = self._killed = False
+        self._prepare(sandbox, time_limit, trusted, budget)
         self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-", ignore_cleanup_errors=True)
         self._token = uuid.uuid4().hex
-        self._run_folder = self._init = self.group = None
-        self.memory_peak = None  # bytes the whole run held at most, where it ran in a cgroup
-        self.ended = threading.Event()  # set once the run's processes are gone (or given up on) and its turn is free
         env, cwd, fds, info, userns, program = {}, self._scratch.name, (), None, None, None
         try:
+            if not isinstance(kit_dir, (str, os.PathLike)):  # the kit's files: written here, once
+                kit_dir = write_files(kit_dir, Path(self._scratch.name) / "kit")
+            elif self.kind == "bwrap" and zygote is None and grader_makes_namespace():
+                kit_dir = readable_copy(kit_dir, self._scratch.name)  # the sandbox's user (HOST_ID) reads it
             if self.kind == "user":
                 from hwtools.grade.instructor.user_sandbox import RunFolder  # noqa: PLC0415
 
@@ -331,7 +290,6 @@ class WorkerProcess:
             if self.kind == "bwrap":
                 program = data_pipe(seccomp_program())
                 userns = host_user_namespace()
-                kit_dir = kit_dir if userns is None or zygote is not None else readable_copy(kit_dir, self._scratch.name)
             command, options = sandbox.command(kit_dir, time_limit, self._run_folder, self.kind, userns, program, zygote)
             if self.kind != "none":  # the run as a whole bounded (processes, memory with tmpfs), where it can be
                 from hwtools.grade.instructor.cgroups import RunGroup  # noqa: PLC0415 - Linux only
@@ -365,6 +323,17 @@ class WorkerProcess:
             for fd in () if fds else (program, userns, zygote):  # not handed to bubblewrap (an error before)
                 if fd is not None:
                     os.close(fd)
+
+    def _prepare(self, sandbox, time_limit, trusted, budget):
+        """What every run holds before it is launched (here, or by a grading's zygote at its ``begin``)."""
+        self.sandbox, self.time_limit, self.kind = sandbox, time_limit, sandbox.run_kind(trusted)
+        self.budget, self.trusted = budget, trusted
+        self.started = time.monotonic()
+        self.deadline = self.started + wall_limit(time_limit)
+        self.begun = self._holding = self._budget_bound = self._killed = False
+        self._scratch = self._run_folder = self._init = self.group = None
+        self.memory_peak = None  # bytes the whole run held at most, where it ran in a cgroup
+        self.ended = threading.Event()  # set once the run's processes are gone (or given up on) and its turn is free
 
     def begin(self):
         """Start the run proper (once; ``send`` calls it): a run of a grading first waits for its
@@ -456,7 +425,8 @@ class WorkerProcess:
             stream = getattr(self, "_stderr", None)
             if stream is not None:
                 stream.close()
-            self._scratch.cleanup()
+            if self._scratch is not None:
+                self._scratch.cleanup()
         finally:
             _LIVE.discard(self)
             budget = self.budget
@@ -467,207 +437,6 @@ class WorkerProcess:
                 self._holding = False
                 budget.turn.release()
             self.ended.set()
-
-
-class ZygoteLost(ConnectionError):
-    """The grading's zygote is gone, or broke its protocol: no later run of the grading runs."""
-
-
-class Zygote:
-    """The grader's side of one grading's zygote: a bubblewrap sandbox made as for a single run
-    (``WorkerProcess``: the same namespaces, seccomp filter, limits and cgroup) whose PID 1 is the
-    trusted ``worker.py --zygote``. It imports numpy, gymnasium and the grader's runtime once, then
-    forks each run of the grading's student code on request (``ZygoteRun``), one at a time: the
-    grading's ``turn``. Its ``/kit`` is the host folder ``kits``, which holds a run's kit from the
-    run's fork until every process of it is dead, and nothing in between. The requests and replies
-    go over a Unix socket pair made before the sandbox (so no socket is made inside it), the run's
-    three descriptors with the request; each reply has a deadline, and a zygote that misses one, or
-    says a run's processes outlived its end, is killed with its whole sandbox: ``lost``, and every
-    later run of the grading fails (fail closed)."""
-
-    def __init__(self, sandbox):
-        self.lost, self._ready, self._closed = None, False, False
-        self._lock = threading.Lock()
-        self._folder = tempfile.TemporaryDirectory(prefix="hwgrade-zygote-", ignore_cleanup_errors=True)
-        self.kits = Path(self._folder.name) / "kit"
-        self.kits.mkdir()
-        self.kits.chmod(0o755)  # the mount's root: readable by a root grader's sandbox user (HOST_ID) too
-        self.channel, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        try:
-            self.process = WorkerProcess(sandbox, self.kits, ZYGOTE_CPU, zygote=theirs.detach())
-        except BaseException:
-            self.channel.close()
-            self._folder.cleanup()
-            raise
-        self.group = self.process.group
-
-    def _receive(self, seconds):
-        self.channel.settimeout(seconds)
-        data = self.channel.recv(4096)
-        if not data:
-            raise ConnectionError("the zygote closed its socket")
-        return json.loads(data)
-
-    def _start(self):
-        """(lock held) Wait for the zygote's imports, once; else it is lost."""
-        if self.lost is None and not self._ready:
-            try:
-                self._ready = self._receive(SETUP_SECONDS) == {"op": "ready"}
-            except (OSError, ValueError):
-                pass
-            if not self._ready:
-                self._lose("it did not start")
-
-    def ready(self):
-        """Wait for the zygote's imports (a run does before its turn and its clock)."""
-        with self._lock:
-            self._start()
-
-    def ask(self, request, expect, fds=(), seconds=GONE_SECONDS):
-        """The zygote's reply ``expect`` to ``request`` (with descriptors ``fds``) within ``seconds``:
-        else it is lost (ZygoteLost)."""
-        with self._lock:
-            self._start()
-            if self.lost is None:
-                try:
-                    socket.send_fds(self.channel, [json.dumps(request).encode()], list(fds))
-                    reply = self._receive(seconds)
-                    if isinstance(reply, dict) and reply.get("op") == expect:
-                        return reply
-                except (OSError, ValueError):
-                    pass
-                self._lose(f"it did not answer {request['op']!r}")
-            raise ZygoteLost(f"{LOST_WORDS} ({self.lost})")
-
-    def fork(self, kit_dir, fds, limits):
-        """Put a copy of the kit ``kit_dir`` in as ``/kit`` and fork a run on it, its
-        descriptors ``fds`` (requests, answers, error stream) and ``limits`` (CPU seconds, address
-        space, open files, file size)."""
-        try:
-            for entry in Path(kit_dir).iterdir():
-                if entry.is_dir():
-                    shutil.copytree(entry, self.kits / entry.name, symlinks=False)
-                else:
-                    shutil.copy(entry, self.kits / entry.name)
-            if grader_makes_namespace():
-                for path in self.kits.rglob("*"):
-                    path.chmod(0o755 if path.is_dir() else 0o644)
-        except OSError as error:
-            with self._lock:
-                self._lose(f"its kit could not be put in ({error})")
-        self.ask({"op": "run", "limits": limits}, "started", fds)
-
-    def wait(self, seconds):
-        """The run's exit code once it has exited, waiting ``seconds`` at most (None: still running)."""
-        return self.ask({"op": "wait", "seconds": seconds}, "status", seconds=seconds + GONE_SECONDS)["code"]
-
-    def end(self):
-        """End the run: every process of it killed and gone (the zygote alone in its sandbox, or the
-        sandbox gone), its kit removed; its exit code."""
-        reply = self.ask({"op": "end"}, "ended")
-        with self._lock:
-            if reply.get("alone") is not True:
-                self._lose("a run's process outlived its end")
-            elif not self._empty_kits():
-                self._lose("a run's kit could not be removed")
-        return reply.get("code")
-
-    def _empty_kits(self):
-        for entry in list(self.kits.iterdir()):
-            try:
-                remove_tree(entry) if entry.is_dir() and not entry.is_symlink() else entry.unlink()
-            except OSError:
-                return False
-        return True
-
-    def _lose(self, why):
-        """(lock held) Kill the sandbox with every process in it; no later run begins here."""
-        self.lost = self.lost or why
-        if not self._closed:
-            self._closed = True
-            self.channel.close()  # the zygote's sign to exit
-            self.process.finish(graceful=False)
-            self._empty_kits()
-
-    def close(self):
-        with self._lock:
-            self._lose("closed")
-            self._folder.cleanup()
-
-
-class ZygoteRun(WorkerProcess):
-    """One run of student code forked by its grading's ``Zygote`` at its ``begin``: the same pipes,
-    deadlines, turn, budget and answers as a run in a sandbox of its own."""
-
-    def __init__(self, sandbox, kit_dir, time_limit, budget):  # noqa: PLW0231 - nothing is launched here
-        self.sandbox, self.time_limit, self.kind, self.trusted = sandbox, time_limit, "bwrap", False
-        self.budget, self.zygote, self.kit_dir = budget, budget.zygote, kit_dir
-        self.started = time.monotonic()
-        self.deadline = self.started + wall_limit(time_limit)
-        self.begun = self._holding = self._budget_bound = self._killed = self._forked = False
-        self._run_folder = self._init = self.group = self.memory_peak = None
-        self._oom_kills = 0
-        self.ended = threading.Event()
-        self._scratch = tempfile.TemporaryDirectory(prefix="hwgrade-run-", ignore_cleanup_errors=True)
-        self._stderr = open(Path(self._scratch.name) / "stderr", "w+b")  # noqa: SIM115 - closed in finish
-        requests, answers = os.pipe(), os.pipe()
-        self._ends = [requests[0], answers[1]]  # the run's, handed to the zygote
-        self._pipes = Pipes(open(requests[1], "wb", buffering=0), open(answers[0], "rb", buffering=0))  # noqa: SIM115
-
-    def _close_ends(self):
-        for fd in self._ends:
-            os.close(fd)
-        self._ends = []
-
-    def begin(self):
-        if self.begun:
-            return
-        try:
-            self.zygote.ready()  # its imports, before the turn and the run's clock
-            super().begin()
-            group = self.zygote.group
-            self._oom_kills = group.oom_kills() if group is not None and not self.zygote.lost else 0
-            cpu, memory, files = (int(limit) for limit in self.sandbox.limits(self.time_limit, self.kind)[1])
-            self.zygote.fork(self.kit_dir, self._ends + [self._stderr.fileno()], [cpu, memory, files, MAX_FILE_BYTES])
-            self._forked = True
-        finally:
-            self._close_ends()  # the run's ends are the zygote's now (or no one's): the answers end at its end
-
-    def receive(self, deadline=None):
-        if not self._forked and self.zygote.lost:
-            return f"lost:{LOST_WORDS}"
-        return super().receive(deadline)
-
-    def _cpu_limit_reached(self):
-        if resource is None:
-            return False  # no CPU-time limit on this system (and no zygote: bubblewrap's only)
-        try:
-            code = self.zygote.wait(2.0)
-        except ZygoteLost:
-            return False
-        group = self.zygote.group
-        if group is not None and not self.zygote.lost and group.oom_kills() > self._oom_kills:
-            return False  # killed for the sandbox's memory bound
-        return code == -signal.SIGKILL  # the grader kills a forked run only at its end (the CPU limit: soft = hard)
-
-    def finish(self, graceful=True):
-        try:
-            self._close_ends()
-            self._pipes.end_requests()
-            code = None
-            if self._forked:
-                try:
-                    if graceful and self.begun:
-                        self.zygote.wait(max(0.0, min(self.deadline - time.monotonic(), 10.0)))
-                    code = self.zygote.end()
-                except ZygoteLost:
-                    pass
-                group = self.zygote.group
-                self.memory_peak = group.memory_peak() if group is not None and not self.zygote.lost else None
-            self._pipes.close()
-            return code, _tail(self._stderr), round(time.monotonic() - self.started, 3)
-        finally:
-            self._cleanup()
 
 
 def _finish(worker, deadline):

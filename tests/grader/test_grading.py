@@ -444,12 +444,12 @@ def descendants(roots):
 
 
 def worker_processes(settle=3.0):
-    """The processes of this test run running the grader's worker (a student's run or a reference
-    server) that are still alive (zombies excluded), after giving killed ones up to ``settle``
+    """The processes of this test run running the grader's worker (a student's run, a reference
+    server, or a grading's zygote with the runs it forks) that are still alive (zombies excluded), after giving killed ones up to ``settle``
     seconds to go. Only this process's own tree counts (other test runs and graders may share the
     machine; in bubblewrap a process that leaves its session stays in the sandbox's tree)."""
-    alive = live_processes(lambda cmdline: b"worker.py" in cmdline and (b"/grader/" in cmdline or b"hwgrade-" in cmdline),
-                           settle)
+    alive = live_processes(lambda cmdline: (b"worker.py" in cmdline or b"zygote.py" in cmdline) and
+                           (b"/grader/" in cmdline or b"hwgrade-" in cmdline), settle)
     return alive & descendants({os.getpid()})
 
 
@@ -670,6 +670,24 @@ def test_command_line_help_needs_no_homework_packages():
     result = subprocess.run([sys.executable, "-c", code], cwd=KIT, capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert "--reference" in result.stdout and "--json" in result.stdout and "--todo" in result.stdout
+
+
+def test_a_grader_s_idle_zygote_ends_with_it():
+    """A grading's zygote waits idle for the grader's next grading; it ends with the grader (at the
+    latest when the grading process exits), its processes and control groups gone, not left to
+    bubblewrap's --die-with-parent, which removes no control group."""
+    import gc  # noqa: PLC0415
+
+    grader = Grader(KIT, isolation="auto", time_limit=TIME_LIMIT)
+    if grader.zygotes is None:
+        pytest.skip(f"no bubblewrap here: {grader.sandbox.how}")
+    budget = grader._grading(grader.budget, grader.layout)
+    budget.close()  # the grading is over: its zygote waits idle
+    zygote = budget.zygote
+    del grader, budget
+    gc.collect()
+    assert zygote.process.process.poll() is not None, "an idle zygote outlived its grader"
+    assert zygote.group is None or not any(folder.exists() for folder in zygote.group.folders)
 
 
 def test_command_line_grades_one_todo_to_json(tmp_path):

@@ -27,6 +27,7 @@ import pytest
 
 from hwtools.grade import broker, kits, sandbox
 from hwtools.grade.instructor import bwrap_sandbox, cgroups, user_sandbox
+from hwtools.grade.instructor.zygote import Zygotes
 from hwtools.grade.in_sandbox import channel
 from hwtools.grade.sandbox import Sandbox
 import containers
@@ -109,12 +110,18 @@ def user(user_python):
     return Sandbox(python=user_python, isolation="user", time_limit=30)
 
 
+# the kit a zygote compiles when it starts: a sigmoid that answers -1, which no test's kit does
+TEMPLATE = {"hwlib/__init__.py": "", "hwlib/logreg.py": "import numpy as np\n\n\ndef sigmoid(z):\n    return "
+            "np.array([-1.0])\n"}
+
+
 class Forked:
-    """``isolated`` with every run forked by the zygote of one grading (``Sandbox.grading``), as a
-    grader's runs of student code are under bubblewrap."""
+    """``isolated`` with every run forked by the zygote of one grading (``Budget.zygote``), as a
+    grader's runs of student code are under bubblewrap, the zygote's template ``TEMPLATE``."""
 
     def __init__(self, box):
-        self.box, self.grading = box, box.grading(3600)
+        self.box, self.zygotes = box, Zygotes(box)
+        self.grading = sandbox.Budget(3600, self.zygotes.take(TEMPLATE))
 
     def start(self, kit, time_limit=None, trusted=False, budget=None):
         return self.box.start(kit, time_limit, trusted, self.grading)
@@ -130,6 +137,7 @@ def zygote(isolated):
     forked = Forked(isolated)
     yield forked
     forked.grading.close()
+    forked.zygotes.close()
 
 
 @pytest.mark.parametrize("mode", ["isolated", "user"])
@@ -331,11 +339,12 @@ CHILD_SECONDS = 300
 
 
 def worker_processes(kit, settle=3.0, before=frozenset()):
-    """Live processes running the worker, in the sandbox (/grader/worker.py) or on ``kit`` without
-    one, but those in ``before``; killed ones get up to ``settle`` seconds to go. (Workers this test
-    process started earlier, a reference server of another test's grader, may still be alive: a test
-    judges only the workers its own run started.)"""
-    return live_processes(lambda cmdline: b"/grader/worker.py" in cmdline or
+    """Live processes running the worker, in the sandbox (/grader/worker.py, or a grading's zygote,
+    /grader/zygote.py, and every process it forks) or on ``kit`` without one, but those in
+    ``before``; killed ones get up to ``settle`` seconds to go. (Workers this test process started
+    earlier, a reference server of another test's grader, may still be alive: a test judges only
+    the workers its own run started.)"""
+    return live_processes(lambda cmdline: b"/grader/worker.py" in cmdline or b"/grader/zygote.py" in cmdline or
                           (b"worker.py" in cmdline and str(kit).encode() in cmdline), settle, before)
 
 
@@ -581,7 +590,8 @@ ZYGOTE_RUN = textwrap.dedent("""
 
     values = np.array([{mine}, len(others), descriptors, refused("/proc/1/environ", "rb"), refused("/proc/1/mem", "r+b"),
                        float(int(hashlib.sha256(repr(sorted(os.environ.items())).encode()).hexdigest()[:12], 16)),
-                       float(sorted(os.listdir("/kit")) == ["_hwgrade", "hwlib"]),
+                       float(sorted(os.listdir("/kit")) == ["_hwgrade", "hwlib"] and
+                             os.path.isdir("/kit/hwlib/extra") == {extra}),
                        np.random.random()] + [float(resource.getrlimit(getattr(resource, name))[0]) for name in
                                               ("RLIMIT_CPU", "RLIMIT_AS", "RLIMIT_FSIZE", "RLIMIT_NOFILE")])
     if os.fork() == 0:  # what a run leaves for the next one: a child, its environment, signals to the zygote
@@ -593,15 +603,23 @@ ZYGOTE_RUN = textwrap.dedent("""
 
 
 def test_a_zygote_s_runs_begin_alone_and_inherit_nothing_of_each_other(isolated, zygote, tmp_path):
-    """Three runs forked one after the other by one grading's zygote, each of which leaves a child
+    """Three runs forked one after the other by one zygote (the first in one grading, the next two in
+    the grading it serves next, as a grader's zygote serves its gradings in turn), each of which leaves a child
     behind, changes its environment and signals the zygote (SIGINT, SIGTERM, SIGHUP, SIGUSR1,
     SIGSTOP, SIGKILL): each begins with no process of the sandbox alive but itself and the zygote
     (PID 1), with the descriptors, environment and limits of a run in a sandbox of its own (its CPU
     limit its own, not the zygote's), its own draw of numpy's global generator, its own kit alone in
-    ``/kit``, and cannot read or write the zygote's memory (non-dumpable)."""
-    runs = [make_kit(tmp_path / str(index), ZYGOTE_RUN.format(mine=index)) for index in range(4)]
+    ``/kit`` (the first one's extra folder gone), its own code (not the zygote's compiled template,
+    ``TEMPLATE``), and cannot read or write the zygote's memory (non-dumpable)."""
+    runs = [make_kit(tmp_path / str(index), ZYGOTE_RUN.format(mine=index, extra=index == 1)) for index in range(4)]
+    (runs[1] / "hwlib" / "extra").mkdir()
+    (runs[1] / "hwlib" / "extra" / "left.py").write_text("")
     alone = values(run(runs[0], isolated)).tolist()
-    forked = [values(run(kit, zygote)).tolist() for kit in runs[1:]]
+    forked, first = [values(run(runs[1], zygote)).tolist()], zygote.grading.zygote
+    zygote.grading.close()
+    zygote.grading = sandbox.Budget(3600, zygote.zygotes.take(TEMPLATE))
+    assert zygote.grading.zygote is first, "a later grading did not take the zygote left idle"
+    forked += [values(run(kit, zygote)).tolist() for kit in runs[2:]]
     for index, seen in enumerate(forked, 1):
         assert seen[0] == index, "a run ran another run's code"
         assert seen[1] == 0, f"run {index} began beside {seen[1]:.0f} processes of the run before it"
@@ -614,13 +632,31 @@ def test_a_zygote_s_runs_begin_alone_and_inherit_nothing_of_each_other(isolated,
 
 def test_a_lost_zygote_fails_its_grading_s_later_runs(zygote, tmp_path):
     """Fail closed: once a grading's zygote is gone (killed from outside, as the kernel's OOM killer
-    might), every later run of that grading fails, in fixed words, and none runs elsewhere."""
+    might), every later run of that grading fails, in fixed words, and none runs elsewhere; the
+    next grading gets a zygote of its own. Nor is a later grading given a zygote that died while idle,
+    or one while a run of its grading is still alive."""
     kit = make_kit(tmp_path, "values = np.array([1.0])")
     assert values(run(kit, zygote)).tolist() == [1.0]
-    signal.pidfd_send_signal(zygote.grading.zygote.process._init, signal.SIGKILL)
+    lost = zygote.grading.zygote
+    signal.pidfd_send_signal(lost.process._init, signal.SIGKILL)
     for _ in range(2):
         outcome, results = run(kit, zygote)
         assert (outcome.status, outcome.detail, results) == ("lost", broker.STOPS["lost"], {})
+    zygote.grading.close()
+    zygote.grading = sandbox.Budget(3600, zygote.zygotes.take(TEMPLATE))
+    assert zygote.grading.zygote is not lost and values(run(kit, zygote)).tolist() == [1.0]
+    idle = zygote.grading.zygote
+    zygote.grading.close()
+    signal.pidfd_send_signal(idle.process._init, signal.SIGKILL)
+    idle.process.process.wait(timeout=30)
+    zygote.grading = sandbox.Budget(3600, zygote.zygotes.take(TEMPLATE))
+    assert zygote.grading.zygote is not idle, "a grading was given a zygote that died while idle"
+    busy, alive = zygote.grading.zygote, zygote.start(kit)
+    alive.begin()  # forked: its processes live until its end
+    zygote.grading.close()
+    zygote.grading = sandbox.Budget(3600, zygote.zygotes.take(TEMPLATE))
+    alive.finish(graceful=False)
+    assert zygote.grading.zygote is not busy, "a zygote went to a later grading while a run of it was alive"
 
 
 def test_the_runs_of_two_gradings_run_side_by_side(plain, tmp_path):

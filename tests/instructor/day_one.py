@@ -56,16 +56,17 @@ FOREIGN_PROGRAMS = "foreign-programs"  # beside a foreign student Python's bin/:
 EDITION_TESTS_SECONDS = 1500  # the edition's whole pytest: about 2.5 min at load 3-6 on 2 cores
 
 
-def assert_edition_tests_pass(python, kit, encoding):
+def assert_edition_tests_pass(python, kit, encoding, only=()):
     """The edition's own test command, ``python -m pytest`` in ``kit`` with the student's ``python``, passes within
-    its time limits, its notebooks among its tests (its output read in ``encoding``, the system's pipes')."""
+    its time limits, its notebooks among its tests (its output read in ``encoding``, the system's pipes'); ``only``:
+    the command run on these of its tests alone (``("tests",)``: its unit tests), its notebooks still collected."""
     def pytest(*options, timeout):
         return subprocess.run([str(python), "-m", "pytest", "-q", "-p", "no:cacheprovider", *options], cwd=kit,
                               env=kit_env(kit, python), capture_output=True, encoding=encoding, errors="replace",
                               timeout=timeout)
 
     assert re.search(r"^timeout = \d+$", (Path(kit) / "pyproject.toml").read_text(), re.M)  # a limit for every test
-    done = pytest(timeout=EDITION_TESTS_SECONDS)
+    done = pytest(*only, timeout=EDITION_TESTS_SECONDS)
     summary = done.stdout.strip().splitlines()[-1] if done.stdout.strip() else ""
     assert done.returncode == 0, done.stdout[-4000:] + done.stderr[-2000:]
     assert re.fullmatch(r"=* ?\d+ passed(, \d+ skipped)? in .*", summary.strip("= ")), summary

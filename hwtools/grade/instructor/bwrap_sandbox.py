@@ -31,6 +31,7 @@ from hwtools.grade.kits import WORKER, worker_env
 
 TMPFS_BYTES = 64 * 1024**2  # the run's /tmp
 SHM_BYTES = 16 * 1024**2  # the run's /dev/shm (the rest of its /dev is read-only)
+ZYGOTE_INIT = Path(__file__).resolve().parent / "zygote_init.py"  # a grading's zygote: its sandbox's PID 1
 HOST_ID = 2_000_000_000  # a root grader's sandbox runs as this uid and gid on the host: no account's, never root's
 CLONE_NEWUSER = 0x10000000
 
@@ -134,8 +135,9 @@ def bwrap_options(python, kit_dir, program, userns=None, zygote=False):
     """bubblewrap's options (given to it through a pipe, not on its command line) that run a
     Python on ``kit_dir`` with ``WORKER`` as ``/grader/worker.py`` under the seccomp filter read
     from descriptor ``program`` (``data_pipe(seccomp_program())``), in user namespace ``userns`` (a
-    descriptor from ``host_user_namespace``, else in one of bwrap's own). ``zygote``: the command is
-    the sandbox's PID 1 (no init of bubblewrap's), and the grader's runtime is ``/grader/_hwgrade``."""
+    descriptor from ``host_user_namespace``, else in one of bwrap's own). ``zygote``: the command,
+    ``ZYGOTE_INIT`` as ``/grader/zygote.py``, is the sandbox's PID 1 (no init of bubblewrap's), beside
+    the grader's runtime as ``/grader/_hwgrade``."""
     users = ["--unshare-user"] if userns is None else ["--userns", str(userns)]
     args = ["--seccomp", str(program), "--unshare-ipc", "--unshare-pid", "--unshare-net", "--unshare-uts",
             "--unshare-cgroup-try", *users, "--uid", "65534", "--gid", "65534", "--cap-drop", "ALL", "--die-with-parent",
@@ -147,7 +149,8 @@ def bwrap_options(python, kit_dir, program, userns=None, zygote=False):
     for path in python_paths(python):
         if not path.startswith("/usr/"):
             args += ["--ro-bind", path, path]
-    args += ["--as-pid-1", "--ro-bind", str(WORKER.parent), "/grader/_hwgrade"] if zygote else []
+    args += ["--as-pid-1", "--ro-bind", str(WORKER.parent), "/grader/_hwgrade", "--ro-bind", str(ZYGOTE_INIT),
+             "/grader/zygote.py"] if zygote else []
     args += ["--ro-bind", str(kit_dir), "/kit", "--ro-bind", str(WORKER), "/grader/worker.py",
              "--remount-ro", "/",  # the sandbox's root is a tmpfs without a size limit: read-only once built
              "--chdir", "/tmp", "--clearenv"]
