@@ -121,7 +121,9 @@ def attempt(action):
         return f"{type(error).__name__}: {error}"
 
 def interrupted_wait():
-    """SIGINT to this process 0.3 s into a 3 s wait: how long the wait lasted before KeyboardInterrupt."""
+    """SIGINT to this process 0.3 s into a 3 s wait: how long the wait lasted before KeyboardInterrupt. Python's own
+    handler first: a test run started in a shell's background ignores SIGINT, and so would this probe."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     begun = time.monotonic()
     threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
     try:
