@@ -12,8 +12,8 @@ os.environ["MPLBACKEND"] = "Agg"
 
 pytest_plugins = ("hwtools.pytest_todo", "hwtools.pytest_overrun")
 
-# The README's test command (-n 2 --dist loadfile) hands each process a file at a time, in collection order: the
-# heaviest files first, then the rest in folder order, so that the two processes end together (longest first, as a
+# The README's test command (-n 3 --dist loadfile) hands each process a file at a time, in collection order: the
+# heaviest files first, then the rest in folder order, so that the processes end together (longest first, as a
 # scheduler would). By their times in the 2026-12-07 whole-suite run (benchmarks/RESULTS.md, the test suite).
 HEAVIEST_FIRST = ("tests/grader/test_grading.py", "tests/grader/test_checks.py", "tests/browser/test_browser.py",
                   "tests/grader/test_classroom.py", "tests/grader/test_gradescope.py",
@@ -21,7 +21,7 @@ HEAVIEST_FIRST = ("tests/grader/test_grading.py", "tests/grader/test_checks.py",
                   "tests/instructor/test_student_path.py", "tests/instructor/test_student_edition.py",
                   "tests/grader/test_sandbox.py", "tests/browser/test_browser_dayone.py")
 # A file whose tests run once per system (a module-scoped run each): each system's tests are a unit of their own,
-# so that the two processes share them.
+# so that the test processes share them.
 BY_SYSTEM = "tests/notebooks/test_other_systems.py"
 
 

@@ -89,7 +89,7 @@ def test_instructor_files_are_left_out_and_the_rest_is_there(edition):
 
 def test_the_editions_requirements_are_the_kits_without_the_instructors_own(edition):
     """Issue 32.3: the edition installs what the student's side runs; a requirement whose comment
-    says "Instructor's kit only:" (the test command's -n 2, the similarity report's copydetect, the browser
+    says "Instructor's kit only:" (the test command's -n 3, the similarity report's copydetect, the browser
     tests' axe-core) stays with the instructor."""
     def requirements(text):
         return [line.split(">")[0].split("=")[0] for line in text.splitlines() if line.strip() and not line.startswith("#")]

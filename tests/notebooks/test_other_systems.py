@@ -11,7 +11,7 @@ they chose their learning rate); they write words in it and hand in again, repor
 hwtools.handin``: the visible checks, the zip, both notebooks in kernels of that Python, the PDF where there is a
 browser); then they run the edition's own tests (``python -m pytest``; on the hub its unit tests: see the test).
 
-The two systems' runs are two scheduling units of the README's test command (``conftest.py``), so that the two test
+The two systems' runs are two scheduling units of the README's test command (``conftest.py``), so that the test
 processes share them.
 """
 
