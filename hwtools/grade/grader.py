@@ -270,8 +270,7 @@ class Grader:
         try:
             with ThreadPoolExecutor(max_workers=self.jobs) as executor:
                 if self.hidden is not None:  # every TODO's visible run before any hidden run (``_run_and_judge``)
-                    list(executor.map(lambda todo: self._visible_run(todo, read, layout, pool, budget, kit(todo)),
-                                      graded))
+                    list(executor.map(lambda todo: self._visible_run(todo, kit(todo), pool, budget), graded))
                 entries = dict(zip(graded, executor.map(
                     lambda todo: self._todo_entry(todo, read, layout, pool, budget, secret, kit(todo)), graded)))
             for todo in selected:
@@ -426,10 +425,10 @@ class Grader:
     def _reference_of(self, todo, cases=None):
         return self._reference_values(todo, cases) if self.reference is not None else None
 
-    def _visible_run(self, todo, read, layout, pool, budget, files=None):
-        """The run of ``todo``'s visible cases alone (memoized per code, as the known mistakes' runs;
-        a run its submission's budget stopped is not kept), or None when its code cannot run."""
-        files = self._kit_files(todo, read, layout) if files is None else files
+    def _visible_run(self, todo, files, pool, budget):
+        """The run of ``todo``'s visible cases alone in its kit ``files`` (``_kit_files``; memoized per code, as
+        the known mistakes' runs; a run its submission's budget stopped is not kept), or None when its code
+        cannot run."""
         if isinstance(files, (str, Exception)):
             return None
         return self._memoized(("visible", kits.files_digest(files), pool.digest if pool else "", todo),
@@ -442,9 +441,9 @@ class Grader:
         that no run that can still send text back to a student begins after a run that saw a hidden
         input. A hidden run that stops is a stop in the hidden phase (nothing of it is shown)."""
         if not cases.hidden:  # its visible run is all (run already in the visible phase where there are hidden checks)
-            student = self._visible_run(todo, None, None, pool, budget, files)
+            student = self._visible_run(todo, files, pool, budget)
         else:
-            outcome, results = self._visible_run(todo, None, None, pool, budget, files)
+            outcome, results = self._visible_run(todo, files, pool, budget)
             student = (outcome, dict(results))
             if outcome.status == "ok" and any(result.get("status") == "ok" for result in results.values()):
                 hidden_outcome, hidden_results = self._run_now(todo, files, [], _phase(cases.hidden), pool, budget)
